@@ -1,0 +1,37 @@
+"""Headless-Chromium screenshots of Meshcat HTML recordings, for tests.
+
+Chromium comes from Debian's package (``.ci/run`` installs it); tests that need it skip
+when it is absent. Flags as measured in DRAKE_NOTES.md (a virtual-time budget of 0 hangs;
+background networking must be off on this closed network).
+"""
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def screenshot(html: Path, png: Path, *, budget_ms: int = 4500, size=(800, 600)) -> np.ndarray:
+    """Renders ``html`` headless, writes ``png`` and returns its pixels (h, w, channels)."""
+    import matplotlib.image
+
+    command = [
+        CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync",
+        "--no-first-run", f"--user-data-dir={png.parent / 'chromium-profile'}",
+        f"--virtual-time-budget={budget_ms}", f"--window-size={size[0]},{size[1]}",
+        f"--screenshot={png}", html.resolve().as_uri(),
+    ]
+    subprocess.run(command, check=True, capture_output=True, timeout=120)
+    return matplotlib.image.imread(png)
+
+
+def fraction_of_hue(image: np.ndarray, channel: int, margin: float = 0.12) -> float:
+    """Fraction of pixels whose ``channel`` (0 red, 1 green, 2 blue) exceeds both others
+    by ``margin``: a robust "is there something of this colour" measure under lighting."""
+    rgb = image[..., :3]
+    others = np.delete(rgb, channel, axis=-1).max(axis=-1)
+    return float(np.mean(rgb[..., channel] - others > margin))
