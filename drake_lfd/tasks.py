@@ -1,0 +1,890 @@
+"""Task files: critical configurations, obstacles, shells, constraints (Eq. 10, SPEC 4).
+
+A task ``TK`` is a sequence of critical configurations ``con_i = <P_i, theta_i>`` the
+end-effector frame E must pass through, numbered from 1 as in the paper. A task file is
+YAML, loaded with ``pydrake.common.yaml.yaml_load_typed`` into the ``*Spec`` dataclasses
+below (unknown keys are errors), then checked into a :class:`Task`. Each evaluation trial
+draws a :class:`ConcreteTask` from it with :func:`draw_trial`.
+
+Example, the paper's Table 8 (filling and pouring)::
+
+    name: filling_pouring
+    description: fill cup 1, carry the water upright, pour into cup 2
+    X_WB: {p: [0, 0, 0], euler_zyx: [0, 0, 0]}         # robot base in W; identity if absent
+    X_tool0_E: {p: [0, 0, 0], euler_zyx: [0, 0, 0]}    # E on tool0; identity if absent
+    angle_grid_deg: 15                                  # grid for bounded angles; 15 if absent
+    variables:            # position ranges drawn once per trial and shared by every use
+      x: [-0.5, 0.7]
+      y: [-0.2, 0.0]
+    critical_configurations:
+      - {p: [-0.4, -0.1, 0.0], euler_zyx: [0, -pi, 0]}
+      - {p: [-0.5, 0.1, 0.1], euler_zyx: [0, -pi/2, [-pi, pi]]}
+      - {p: [-0.7, -0.1, 0.1], euler_zyx: [0, -pi/2, [-pi, pi]]}
+      - {p: [x, y, 0.1], euler_zyx: [0, -pi/2, [-pi, pi]]}
+      - {p: [x, y, 0.0], euler_zyx: [pi/2, 0, -pi/2]}
+    obstacles:            # axis-aligned boxes in W: centre and full edge lengths, metres
+      - {name: cup_1, centre: [-0.4, -0.1, -0.05], size: [0.08, 0.08, 0.1]}
+    safety_shells:        # keep-out boxes no robot geometry may enter
+      - {name: cup_1_shell, centre: [-0.4, -0.1, -0.05], size: [0.12, 0.12, 0.12]}
+    path_constraints:     # judged on a run: tool orientation within tolerance from con to con
+      - {kind: orientation, between: [2, 4], euler_zyx: [0, -pi/2, 0], tolerance_deg: 10}
+
+Values:
+
+- Positions ``p: [x, y, z]`` in metres. Each coordinate is a number, an inline range
+  ``[lower, upper]`` (drawn uniformly per trial, independently of every other), or the
+  name of an entry of ``variables`` (drawn once per trial; every coordinate naming it
+  gets the same value: Table 7's ``z`` of con_2 and con_3, Table 8's ``(x, y)`` of
+  con_4 and con_5). A position range is trial-to-trial variation, not a planner freedom.
+- Orientations ``euler_zyx: [yaw, pitch, roll]`` in radians, ``R = Rz(yaw) Ry(pitch)
+  Rx(roll)`` (Eq. 17, SPEC 2). Each angle is fixed, or bounded ``[lower, upper]``: a
+  freedom the planner chooses among the grid :func:`angle_candidates` (every
+  ``angle_grid_deg`` or finer, both bounds included). Angles may be written as numbers,
+  as multiples of pi (``pi``, ``-pi/2``, ``3*pi/4``, ``0.5pi``) or in degrees
+  (``-90deg``), so the paper's values stay readable. Each bounded angle is chosen per
+  critical configuration; variables are for positions only.
+- ``path_constraints[*].between: [j, k]`` are critical configuration numbers (1-based,
+  ``j < k``); ``kind: orientation`` asks the tool orientation to stay within
+  ``tolerance_deg`` of ``euler_zyx`` from con_j to con_k.
+- Root keys starting with ``_`` are ignored (YAML anchors for reuse, as in Drake).
+
+Every problem is an :class:`~drake_lfd.errors.InputError` naming the file and the field
+(``critical_configurations[3].p[2]``, list indices from 0; the message also names the
+1-based ``con_4``). Not for: planning (the planners), simulating the scene (the
+closed-loop modules), random training tasks beyond :meth:`ConcreteTask.from_fixed`.
+"""
+
+
+import dataclasses
+import itertools
+import math
+import re
+import types
+import typing
+from pathlib import Path
+from typing import Union
+
+import numpy as np
+import yaml
+from pydrake.common.yaml import yaml_load_typed
+from pydrake.math import RigidTransform, RollPitchYaw
+
+from drake_lfd.errors import InputError
+
+# No ``from __future__ import annotations`` here: yaml_load_typed reads the Spec fields'
+# types at run time and needs them as types, not strings.
+
+DEFAULT_ANGLE_GRID_DEG = 15.0
+MIN_CRITICAL_CONFIGURATIONS = 2
+PATH_CONSTRAINT_KINDS = ("orientation",)
+
+# ------------------------------------------------------------------ schema (the YAML)
+
+# One number-like token: a YAML number, or a string such as "-pi/2", "90deg", "1e-3".
+Scalar = Union[float, int, str]
+# A coordinate or angle: a number-like token, or a [lower, upper] list of them.
+Entry = Union[list[Scalar], float, int, str]
+
+_DESCRIPTIONS = {Scalar: "a number"}
+
+
+def _required(factory):
+    return dataclasses.field(default_factory=factory, metadata={"required": True})
+
+
+@dataclasses.dataclass
+class PoseSpec:
+    """A fixed pose: ``p`` in metres, ``euler_zyx`` = [yaw, pitch, roll] in radians."""
+
+    p: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    euler_zyx: list[Scalar] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+@dataclasses.dataclass
+class CriticalConfigurationSpec:
+    """``con_i``: each coordinate / angle a value, a [lower, upper] range or a variable."""
+
+    p: list[Entry] = dataclasses.field(
+        default_factory=list,
+        metadata={"required": True, "expected": "a number, a [lower, upper] list or a variable name"},
+    )
+    euler_zyx: list[Entry] = dataclasses.field(
+        default_factory=list,
+        metadata={"required": True, "expected": "an angle or a [lower, upper] list of angles"},
+    )
+
+
+@dataclasses.dataclass
+class BoxSpec:
+    """An axis-aligned box in W: ``centre`` and full edge lengths ``size``, metres."""
+
+    name: str = _required(str)
+    centre: list[float] = _required(list)
+    size: list[float] = _required(list)
+
+
+@dataclasses.dataclass
+class PathConstraintSpec:
+    """A constraint judged on a run between two critical configurations (1-based)."""
+
+    kind: str = "orientation"
+    between: list[int] = _required(list)
+    euler_zyx: list[Scalar] = _required(list)
+    tolerance_deg: float = _required(float)
+
+
+@dataclasses.dataclass
+class TaskSpec:
+    """The whole task file (see the module docstring)."""
+
+    name: str = ""
+    description: str = ""
+    X_WB: PoseSpec = dataclasses.field(default_factory=PoseSpec)
+    X_tool0_E: PoseSpec = dataclasses.field(default_factory=PoseSpec)
+    angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
+    variables: dict[str, list[Scalar]] = dataclasses.field(default_factory=dict)
+    critical_configurations: list[CriticalConfigurationSpec] = _required(list)
+    obstacles: list[BoxSpec] = dataclasses.field(default_factory=list)
+    safety_shells: list[BoxSpec] = dataclasses.field(default_factory=list)
+    path_constraints: list[PathConstraintSpec] = dataclasses.field(default_factory=list)
+
+
+# ------------------------------------------------------------------ checked task types
+
+
+def _read_only(values, shape=None):
+    array = np.array(values, dtype=float)
+    if shape is not None and array.shape != shape:
+        raise ValueError(f"expected shape {shape}, got {array.shape}")
+    array.flags.writeable = False
+    return array
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Box:
+    """An axis-aligned box: ``centre`` (3,) and full edge lengths ``size`` (3,), metres."""
+
+    name: str
+    centre: np.ndarray
+    size: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "centre", _read_only(self.centre, (3,)))
+        object.__setattr__(self, "size", _read_only(self.size, (3,)))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class PathConstraint:
+    """Keep the tool orientation within ``tolerance_rad`` of ``euler_zyx`` (3,) from
+    ``con_from`` to ``con_to`` (1-based, inclusive)."""
+
+    kind: str
+    con_from: int
+    con_to: int
+    euler_zyx: np.ndarray
+    tolerance_rad: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "euler_zyx", _read_only(self.euler_zyx, (3,)))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CriticalConfiguration:
+    """``con_i`` as the task file states it, with its ranges.
+
+    Attributes
+    ----------
+    p_lower, p_upper : array, shape (3,)
+        Position bounds (equal for a fixed coordinate), metres.
+    p_variables : tuple of 3 (str or None)
+        The variable each coordinate names, or None.
+    euler_zyx_lower, euler_zyx_upper : array, shape (3,)
+        [yaw, pitch, roll] bounds (equal for a fixed angle), radians.
+    """
+
+    p_lower: np.ndarray
+    p_upper: np.ndarray
+    p_variables: tuple
+    euler_zyx_lower: np.ndarray
+    euler_zyx_upper: np.ndarray
+
+    def __post_init__(self):
+        for name in ("p_lower", "p_upper", "euler_zyx_lower", "euler_zyx_upper"):
+            object.__setattr__(self, name, _read_only(getattr(self, name), (3,)))
+        object.__setattr__(self, "p_variables", tuple(self.p_variables))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Task:
+    """A checked task file (SPEC 4); :func:`draw_trial` makes concrete trials of it."""
+
+    name: str
+    critical_configurations: tuple
+    X_WB: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    X_tool0_E: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
+    variables: dict = dataclasses.field(default_factory=dict)  # name -> (lower, upper)
+    obstacles: tuple = ()
+    safety_shells: tuple = ()
+    path_constraints: tuple = ()
+    description: str = ""
+    file: str | None = None
+
+    def __len__(self):
+        return len(self.critical_configurations)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ConcreteCriticalConfiguration:
+    """``con_i`` of one trial: a fixed position, angles fixed or bounded.
+
+    Attributes
+    ----------
+    p : array, shape (3,)
+        Position in W, metres.
+    euler_zyx_lower, euler_zyx_upper : array, shape (3,)
+        [yaw, pitch, roll] bounds in radians; equal where the angle is fixed.
+    angle_grid_deg : float
+        Grid step for the bounded angles (:func:`angle_candidates`).
+    """
+
+    p: np.ndarray
+    euler_zyx_lower: np.ndarray
+    euler_zyx_upper: np.ndarray
+    angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
+
+    def __post_init__(self):
+        for name in ("p", "euler_zyx_lower", "euler_zyx_upper"):
+            object.__setattr__(self, name, _read_only(getattr(self, name), (3,)))
+        if np.any(self.euler_zyx_lower > self.euler_zyx_upper):
+            raise ValueError("euler_zyx_lower must be <= euler_zyx_upper")
+        if not self.angle_grid_deg > 0.0:
+            raise ValueError(f"angle_grid_deg must be > 0, got {self.angle_grid_deg}")
+
+    @classmethod
+    def fixed(cls, p, euler_zyx):
+        """A configuration with every angle fixed."""
+        return cls(p=p, euler_zyx_lower=euler_zyx, euler_zyx_upper=euler_zyx)
+
+    @property
+    def is_orientation_fixed(self) -> bool:
+        return bool(np.all(self.euler_zyx_lower == self.euler_zyx_upper))
+
+    @property
+    def euler_zyx(self) -> np.ndarray:
+        """The fixed [yaw, pitch, roll], shape (3,); ValueError if any angle is bounded."""
+        if not self.is_orientation_fixed:
+            raise ValueError("this configuration has bounded angles; choose one of angle_candidates()")
+        return self.euler_zyx_lower
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ConcreteTask:
+    """One trial of a task: every position drawn, bounded angles still free."""
+
+    name: str
+    critical_configurations: tuple
+    X_WB: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    X_tool0_E: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    obstacles: tuple = ()
+    safety_shells: tuple = ()
+    path_constraints: tuple = ()
+    seed: int | None = None
+    variable_values: dict = dataclasses.field(default_factory=dict)  # name -> drawn value
+    file: str | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "critical_configurations", tuple(self.critical_configurations))
+
+    def __len__(self):
+        return len(self.critical_configurations)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Positions of con_1 .. con_n, shape (n, 3)."""
+        return np.array([con.p for con in self.critical_configurations])
+
+    @classmethod
+    def from_fixed(cls, name, positions, euler_zyx, **kwargs):
+        """A task with every angle fixed (for example a random training task).
+
+        Parameters
+        ----------
+        name : str
+        positions : array-like, shape (n, 3)
+        euler_zyx : array-like, shape (n, 3)
+            [yaw, pitch, roll] per configuration, radians.
+        **kwargs
+            Other :class:`ConcreteTask` fields (``X_WB``, ``obstacles``, ...).
+        """
+        positions = np.asarray(positions, dtype=float)
+        euler_zyx = np.asarray(euler_zyx, dtype=float)
+        return cls(
+            name=name,
+            critical_configurations=tuple(
+                ConcreteCriticalConfiguration.fixed(p, e) for p, e in zip(positions, euler_zyx)
+            ),
+            **kwargs,
+        )
+
+
+# ------------------------------------------------------------------------------ angles
+
+_PI_EXPRESSION = re.compile(
+    r"^([+-]?)\s*(\d+(?:\.\d*)?|\.\d+)?\s*\*?\s*pi\s*(?:/\s*(\d+(?:\.\d*)?|\.\d+))?$"
+)
+_DEGREES = re.compile(r"^([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*deg$")
+
+
+def angle_from_text(text):
+    """Radians of an angle written as text, or None if it is not one.
+
+    Accepts plain numbers (``"1.5"``), multiples of pi (``"pi"``, ``"-pi/2"``,
+    ``"3*pi/4"``, ``"0.5pi"``) and degrees (``"-90deg"``).
+    """
+    text = text.strip()
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    match = _DEGREES.match(text)
+    if match:
+        return math.radians(float(match.group(1)))
+    match = _PI_EXPRESSION.match(text)
+    if match:
+        sign, coefficient, divisor = match.groups()
+        value = math.pi * (float(coefficient) if coefficient else 1.0)
+        if divisor is not None:
+            if float(divisor) == 0.0:
+                return None
+            value /= float(divisor)
+        return -value if sign == "-" else value
+    return None
+
+
+def angle_grid(lower, upper, step_rad):
+    """Samples of a bounded angle: ``lower`` to ``upper``, both included, evenly spaced
+    at most ``step_rad`` apart. A fixed angle (``lower == upper``) gives one sample.
+
+    Returns
+    -------
+    angles : array, shape (k,)
+    """
+    span = float(upper) - float(lower)
+    if span <= 0.0:
+        return np.array([float(lower)])
+    count = int(math.ceil(span / step_rad - 1e-9)) + 1
+    return np.linspace(float(lower), float(upper), count)
+
+
+def angle_candidates(con):
+    """Every [yaw, pitch, roll] the planner may choose for ``con`` (SPEC 4).
+
+    Fixed angles keep their value; each bounded one runs over :func:`angle_grid` with
+    ``con.angle_grid_deg``; the result is their Cartesian product (yaw slowest).
+    A full turn such as ``[-pi, pi]`` includes both ends (the same rotation).
+
+    Parameters
+    ----------
+    con : ConcreteCriticalConfiguration
+
+    Returns
+    -------
+    candidates : array, shape (k, 3)
+        Rows are (yaw, pitch, roll) in radians; iterate to get triples.
+    """
+    step = math.radians(con.angle_grid_deg)
+    axes = [angle_grid(lo, hi, step) for lo, hi in zip(con.euler_zyx_lower, con.euler_zyx_upper)]
+    return np.array(list(itertools.product(*axes)), dtype=float).reshape(-1, 3)
+
+
+def rigid_transform_from_euler_zyx(p, euler_zyx):
+    """``RigidTransform`` of a position and [yaw, pitch, roll] (``Rz Ry Rx``, SPEC 2)."""
+    yaw, pitch, roll = (float(v) for v in euler_zyx)
+    return RigidTransform(RollPitchYaw(roll, pitch, yaw), np.asarray(p, dtype=float))
+
+
+# ----------------------------------------------------------------------------- loading
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """SafeLoader that refuses a key written twice in one mapping (PyYAML keeps the
+    last silently) and says where."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = self.construct_object(key_node, deep=deep)
+            try:
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(
+                        None,
+                        None,
+                        f"key {key!r} appears twice in one mapping (first on line {seen[key] + 1})",
+                        key_node.start_mark,
+                    )
+                seen[key] = key_node.start_mark.line
+            except TypeError:
+                pass  # unhashable keys are reported by the schema check
+        return super().construct_mapping(node, deep=deep)
+
+
+def _yaml_error(error, file):
+    mark = getattr(error, "problem_mark", None)
+    problem = getattr(error, "problem", None) or str(error)
+    field = None if mark is None else f"line {mark.line + 1} column {mark.column + 1}"
+    if "could not determine a constructor" in problem:
+        problem = "YAML tags (!Name) are not used in task files"
+    return InputError(f"not valid YAML: {problem}", file=file, field=field)
+
+
+def _describe(schema):
+    if schema in _DESCRIPTIONS:
+        return _DESCRIPTIONS[schema]
+    if schema is float:
+        return "a number"
+    if schema is int:
+        return "an integer"
+    if schema is str:
+        return "a string"
+    origin = typing.get_origin(schema)
+    if origin is list:
+        return "a list"
+    if origin in (Union, types.UnionType):
+        return " or ".join(dict.fromkeys(_describe(alternative) for alternative in typing.get_args(schema)))
+    return "a mapping"
+
+
+def _kind_of(value):
+    if value is None:
+        return "nothing (an empty value)"
+    if isinstance(value, bool):
+        return f"{str(value).lower()} (YAML reads yes/no/on/off/true/false as booleans)"
+    if isinstance(value, dict):
+        return "a mapping"
+    if isinstance(value, list):
+        return "a list"
+    return repr(value)
+
+
+def _matches_scalar(value, schema):
+    if isinstance(value, bool) or value is None:
+        return False
+    if schema is float:
+        if isinstance(value, (int, float)):
+            return True
+        if isinstance(value, str):  # PyYAML reads 1e-3 (no dot) as a string
+            try:
+                float(value)
+            except ValueError:
+                return False
+            return True
+        return False
+    if schema is int:
+        return isinstance(value, int) or (isinstance(value, float) and value.is_integer())
+    if schema is str:
+        return isinstance(value, str)
+    raise TypeError(schema)
+
+
+def _join(path, key):
+    return f"{path}.{key}" if path else str(key)
+
+
+def _check_schema(value, schema, path, file, expected=None):
+    """Checks raw YAML data against a Spec type, so errors name the exact field
+    (``yaml_load_typed`` names only the leaf, and iterates mappings given for lists).
+    ``expected`` words what a union accepts, from the field's metadata."""
+    if schema in (float, int, str):
+        if not _matches_scalar(value, schema):
+            raise InputError(f"expected {_describe(schema)}, got {_kind_of(value)}", file=file, field=path)
+        return
+    origin = typing.get_origin(schema)
+    if origin in (Union, types.UnionType):
+        alternatives = typing.get_args(schema)
+        if isinstance(value, list):
+            for alternative in alternatives:
+                if typing.get_origin(alternative) is list:
+                    _check_schema(value, alternative, path, file)
+                    return
+        elif any(
+            alternative in (float, int, str) and _matches_scalar(value, alternative)
+            for alternative in alternatives
+        ):
+            return
+        raise InputError(f"expected {expected or _describe(schema)}, got {_kind_of(value)}", file=file, field=path)
+    if origin is list:
+        if not isinstance(value, list):
+            raise InputError(f"expected a list, got {_kind_of(value)}", file=file, field=path)
+        (item_schema,) = typing.get_args(schema)
+        for index, item in enumerate(value):
+            _check_schema(item, item_schema, f"{path}[{index}]", file, expected)
+        return
+    if origin is dict:
+        if not isinstance(value, dict):
+            raise InputError(f"expected a mapping, got {_kind_of(value)}", file=file, field=path)
+        _, item_schema = typing.get_args(schema)
+        for key, item in value.items():
+            if not isinstance(key, str):
+                raise InputError(
+                    f"key {_kind_of(key)} is not a name; quote it", file=file, field=path
+                )
+            _check_schema(item, item_schema, _join(path, key), file)
+        return
+    if dataclasses.is_dataclass(schema):
+        if not isinstance(value, dict):
+            raise InputError(f"expected a mapping, got {_kind_of(value)}", file=file, field=path or None)
+        fields = {field.name: field for field in dataclasses.fields(schema)}
+        hints = typing.get_type_hints(schema)
+        for key in value:
+            if not isinstance(key, str):
+                raise InputError(f"key {_kind_of(key)} is not a name; quote it", file=file, field=path or None)
+            if key not in fields:
+                allowed = ", ".join(fields)
+                problem = f"unknown key {key!r} (allowed: {allowed})"
+                if key == "_tag":
+                    problem = "YAML tags (!Name) are not used in task files"
+                raise InputError(problem, file=file, field=_join(path, key))
+        for name, field in fields.items():
+            if name not in value:
+                if field.metadata.get("required"):
+                    raise InputError("missing", file=file, field=_join(path, name))
+                continue
+            _check_schema(value[name], hints[name], _join(path, name), file, field.metadata.get("expected"))
+        return
+    raise TypeError(f"unsupported schema {schema!r}")
+
+
+def load_task_spec(path):
+    """Reads a task file into a :class:`TaskSpec` (structure checked, values not yet).
+
+    Raises
+    ------
+    InputError
+        Unreadable file, invalid YAML, a duplicated or unknown key, a value of the
+        wrong kind; naming the file and the field.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("no such file", file=path) from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(f"cannot read: {error}", file=path) from None
+    return task_spec_from_text(text, file=path)
+
+
+def task_spec_from_text(text, *, file=None):
+    """Like :func:`load_task_spec` for YAML text; ``file`` is named in errors."""
+    try:
+        raw = yaml.load(text, Loader=_UniqueKeyLoader)
+    except yaml.YAMLError as error:
+        raise _yaml_error(error, file) from None
+    if raw is None:
+        raise InputError("the task file is empty", file=file)
+    if not isinstance(raw, dict):
+        raise InputError(f"expected a mapping of task keys, got {_kind_of(raw)}", file=file)
+    # As pydrake's yaml_load: root keys starting with "_" hold anchors, not task data.
+    raw = {key: value for key, value in raw.items() if not (isinstance(key, str) and key.startswith("_"))}
+    _check_schema(raw, TaskSpec, "", file)
+    try:
+        return yaml_load_typed(schema=TaskSpec, data=text)
+    except Exception as error:  # anything left is still the file's fault
+        raise InputError(f"cannot load: {error}", file=file) from None
+
+
+def _finite(value, *, file, field, what="a number"):
+    """A float from a checked scalar (number or numeric string), finite."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"expected {what}, got {_kind_of(value)}", file=file, field=field) from None
+    if not math.isfinite(number):
+        raise InputError(f"{value!r} is not a finite number", file=file, field=field)
+    return number
+
+
+def _angle(value, *, file, field):
+    if isinstance(value, str):
+        number = angle_from_text(value)
+        if number is None:
+            raise InputError(
+                f"{value!r} is not an angle (write radians, a multiple of pi such as -pi/2, "
+                "or degrees such as -90deg)",
+                file=file,
+                field=field,
+            )
+        value = number
+    return _finite(value, file=file, field=field)
+
+
+def _vector(values, count, *, file, field, convert):
+    if len(values) != count:
+        raise InputError(f"expected {count} values, got {len(values)}", file=file, field=field)
+    return np.array([convert(v, file=file, field=f"{field}[{i}]") for i, v in enumerate(values)])
+
+
+def _interval(values, *, file, field, convert, context=""):
+    if len(values) != 2:
+        raise InputError(
+            f"{context}expected [lower, upper], got {len(values)} values", file=file, field=field
+        )
+    lower = convert(values[0], file=file, field=f"{field}[0]")
+    upper = convert(values[1], file=file, field=f"{field}[1]")
+    if lower > upper:
+        raise InputError(f"{context}lower {lower:g} > upper {upper:g}", file=file, field=field)
+    return lower, upper
+
+
+def _pose(spec, *, file, field):
+    p = _vector(spec.p, 3, file=file, field=f"{field}.p", convert=_finite)
+    euler = _vector(spec.euler_zyx, 3, file=file, field=f"{field}.euler_zyx", convert=_angle)
+    return rigid_transform_from_euler_zyx(p, euler)
+
+
+_VARIABLE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def _box(spec, *, file, field):
+    if not spec.name:
+        raise InputError("a box needs a non-empty name", file=file, field=f"{field}.name")
+    centre = _vector(spec.centre, 3, file=file, field=f"{field}.centre", convert=_finite)
+    size = _vector(spec.size, 3, file=file, field=f"{field}.size", convert=_finite)
+    for axis in range(3):
+        if not size[axis] > 0.0:
+            raise InputError(
+                f"box edge lengths must be > 0, got {size[axis]:g}", file=file, field=f"{field}.size[{axis}]"
+            )
+    return Box(name=spec.name, centre=centre, size=size)
+
+
+def task_from_spec(spec, *, file=None):
+    """Checks the values of a :class:`TaskSpec` and returns the :class:`Task`.
+
+    Raises
+    ------
+    InputError
+        Non-finite numbers, ``lower > upper``, fewer than 2 critical configurations,
+        unknown variables, non-positive box sizes, constraint numbers out of range.
+    """
+    name = spec.name or (Path(file).stem if file is not None else "task")
+    X_WB = _pose(spec.X_WB, file=file, field="X_WB")
+    X_tool0_E = _pose(spec.X_tool0_E, file=file, field="X_tool0_E")
+    grid = _finite(spec.angle_grid_deg, file=file, field="angle_grid_deg")
+    if not 0.0 < grid <= 360.0:
+        raise InputError(f"must be in (0, 360] degrees, got {grid:g}", file=file, field="angle_grid_deg")
+
+    variables = {}
+    for variable, values in spec.variables.items():
+        field = f"variables.{variable}"
+        if not _VARIABLE_NAME.match(variable) or variable == "pi":
+            raise InputError(
+                f"{variable!r} is not a variable name (letters, digits, '_'; not 'pi')", file=file, field=field
+            )
+        variables[variable] = _interval(values, file=file, field=field, convert=_finite)
+
+    cons = []
+    specs = spec.critical_configurations
+    if len(specs) < MIN_CRITICAL_CONFIGURATIONS:
+        raise InputError(
+            f"a task needs at least {MIN_CRITICAL_CONFIGURATIONS} critical configurations, got {len(specs)}",
+            file=file,
+            field="critical_configurations",
+        )
+    for index, con_spec in enumerate(specs):
+        base = f"critical_configurations[{index}]"
+        context = f"con_{index + 1}: "
+        if len(con_spec.p) != 3:
+            raise InputError(f"{context}expected [x, y, z], got {len(con_spec.p)} values", file=file, field=f"{base}.p")
+        if len(con_spec.euler_zyx) != 3:
+            raise InputError(
+                f"{context}expected [yaw, pitch, roll], got {len(con_spec.euler_zyx)} values",
+                file=file,
+                field=f"{base}.euler_zyx",
+            )
+        p_lower, p_upper, p_variables = [], [], []
+        for axis, entry in enumerate(con_spec.p):
+            field = f"{base}.p[{axis}]"
+            variable = None
+            if isinstance(entry, list):
+                lower, upper = _interval(entry, file=file, field=field, convert=_finite, context=context)
+            elif isinstance(entry, str) and _VARIABLE_NAME.match(entry) and entry not in ("nan", "inf"):
+                if entry not in variables:
+                    known = ", ".join(variables) or "none"
+                    raise InputError(
+                        f"{context}unknown variable {entry!r} (variables: {known})", file=file, field=field
+                    )
+                variable = entry
+                lower, upper = variables[entry]
+            else:
+                lower = upper = _finite(entry, file=file, field=field)
+            p_lower.append(lower)
+            p_upper.append(upper)
+            p_variables.append(variable)
+        euler_lower, euler_upper = [], []
+        for axis, entry in enumerate(con_spec.euler_zyx):
+            field = f"{base}.euler_zyx[{axis}]"
+            if isinstance(entry, list):
+                lower, upper = _interval(entry, file=file, field=field, convert=_angle, context=context)
+            else:
+                if isinstance(entry, str) and entry in variables:
+                    raise InputError(
+                        f"{context}variables are for positions; write a bounded angle as "
+                        "[lower, upper] (the planner chooses it per configuration)",
+                        file=file,
+                        field=field,
+                    )
+                lower = upper = _angle(entry, file=file, field=field)
+            euler_lower.append(lower)
+            euler_upper.append(upper)
+        cons.append(
+            CriticalConfiguration(
+                p_lower=p_lower,
+                p_upper=p_upper,
+                p_variables=p_variables,
+                euler_zyx_lower=euler_lower,
+                euler_zyx_upper=euler_upper,
+            )
+        )
+
+    boxes = {}
+    obstacles = tuple(_box(b, file=file, field=f"obstacles[{i}]") for i, b in enumerate(spec.obstacles))
+    shells = tuple(_box(b, file=file, field=f"safety_shells[{i}]") for i, b in enumerate(spec.safety_shells))
+    for group, items in (("obstacles", obstacles), ("safety_shells", shells)):
+        for index, box in enumerate(items):
+            if box.name in boxes:
+                raise InputError(
+                    f"box name {box.name!r} is used by {boxes[box.name]} already", file=file, field=f"{group}[{index}].name"
+                )
+            boxes[box.name] = f"{group}[{index}]"
+
+    constraints = []
+    for index, constraint in enumerate(spec.path_constraints):
+        base = f"path_constraints[{index}]"
+        if constraint.kind not in PATH_CONSTRAINT_KINDS:
+            raise InputError(
+                f"unknown kind {constraint.kind!r} (known: {', '.join(PATH_CONSTRAINT_KINDS)})",
+                file=file,
+                field=f"{base}.kind",
+            )
+        if len(constraint.between) != 2:
+            raise InputError(
+                f"expected [j, k] (critical configuration numbers), got {len(constraint.between)} values",
+                file=file,
+                field=f"{base}.between",
+            )
+        first, last = (int(v) for v in constraint.between)
+        if not 1 <= first < last <= len(cons):
+            raise InputError(
+                f"[{first}, {last}] must satisfy 1 <= j < k <= {len(cons)} (con numbers start at 1)",
+                file=file,
+                field=f"{base}.between",
+            )
+        euler = _vector(constraint.euler_zyx, 3, file=file, field=f"{base}.euler_zyx", convert=_angle)
+        tolerance = _finite(constraint.tolerance_deg, file=file, field=f"{base}.tolerance_deg")
+        if not 0.0 < tolerance <= 180.0:
+            raise InputError(
+                f"must be in (0, 180] degrees, got {tolerance:g}", file=file, field=f"{base}.tolerance_deg"
+            )
+        constraints.append(
+            PathConstraint(
+                kind=constraint.kind,
+                con_from=first,
+                con_to=last,
+                euler_zyx=euler,
+                tolerance_rad=math.radians(tolerance),
+            )
+        )
+
+    return Task(
+        name=name,
+        critical_configurations=tuple(cons),
+        X_WB=X_WB,
+        X_tool0_E=X_tool0_E,
+        angle_grid_deg=grid,
+        variables=variables,
+        obstacles=obstacles,
+        safety_shells=shells,
+        path_constraints=tuple(constraints),
+        description=spec.description,
+        file=None if file is None else str(file),
+    )
+
+
+def load_task(path):
+    """Reads and checks a task file.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    task : Task
+
+    Raises
+    ------
+    InputError
+        Naming the file and the field.
+    """
+    return task_from_spec(load_task_spec(path), file=Path(path))
+
+
+# ------------------------------------------------------------------------------ trials
+
+
+def draw_trial(task, seed):
+    """Draws one concrete trial of a task (the paper runs 20 per task).
+
+    Variables are drawn first, uniformly in their ranges, in sorted name order; then
+    each inline position range, con by con, x before y before z. Fixed values draw
+    nothing. Bounded angles stay bounded (the planner chooses them).
+
+    Parameters
+    ----------
+    task : Task
+    seed : int
+        Non-negative; the same seed gives the same trial.
+
+    Returns
+    -------
+    trial : ConcreteTask
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"expected a non-negative integer, got {seed!r}", field="seed")
+    rng = np.random.default_rng(int(seed))
+    values = {name: float(rng.uniform(*task.variables[name])) for name in sorted(task.variables)}
+    cons = []
+    for con in task.critical_configurations:
+        p = np.empty(3)
+        for axis in range(3):
+            variable = con.p_variables[axis]
+            lower, upper = con.p_lower[axis], con.p_upper[axis]
+            if variable is not None:
+                p[axis] = values[variable]
+            elif lower == upper:
+                p[axis] = lower
+            else:
+                p[axis] = rng.uniform(lower, upper)
+        cons.append(
+            ConcreteCriticalConfiguration(
+                p=p,
+                euler_zyx_lower=con.euler_zyx_lower,
+                euler_zyx_upper=con.euler_zyx_upper,
+                angle_grid_deg=task.angle_grid_deg,
+            )
+        )
+    return ConcreteTask(
+        name=task.name,
+        critical_configurations=tuple(cons),
+        X_WB=task.X_WB,
+        X_tool0_E=task.X_tool0_E,
+        obstacles=task.obstacles,
+        safety_shells=task.safety_shells,
+        path_constraints=task.path_constraints,
+        seed=int(seed),
+        variable_values=values,
+        file=task.file,
+    )

@@ -1,0 +1,353 @@
+"""The library directory: add/remove/open, cached features equal recomputed ones, a
+crash mid-save leaves it intact, corrupt manifests and frame mismatches are refused."""
+
+import hashlib
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform, RollPitchYaw
+
+import drake_lfd.library as mut
+from drake_lfd.demonstrations import Demonstration, dual_quaternions_from_demonstration
+from drake_lfd.errors import InputError
+from drake_lfd.features import Feature
+from drake_lfd.kinematics import UR5eKinematics
+from drake_lfd.pose_records import pose_json_from_rigid_transform, rigid_transform_from_pose_json
+
+Q_HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0])
+X_TOOL0_E = RigidTransform(RollPitchYaw(0.1, -0.2, 0.3), [0.01, -0.02, 0.15])
+
+
+def make_demo(seed=0, m=60, name="demo"):
+    rng = np.random.default_rng(seed)
+    t = 3.0 + np.linspace(0.0, 2.0, m)
+    q = Q_HOME + np.outer(np.linspace(0, 1, m) ** 2, rng.uniform(-0.6, 0.6, 6))
+    return Demonstration(name, t, q)
+
+
+def tree_digest(root):
+    """Hash of every directory and file (names and bytes) under ``root``."""
+    digest = hashlib.sha256()
+    for directory, subdirectories, files in sorted(os.walk(root)):
+        subdirectories.sort()
+        digest.update(os.path.relpath(directory, root).encode() + b"/\0")
+        for name in sorted(files):
+            path = os.path.join(directory, name)
+            digest.update(os.path.relpath(path, root).encode() + b"\0")
+            with open(path, "rb") as file:
+                digest.update(file.read())
+    return digest.hexdigest()
+
+
+@pytest.fixture
+def library(tmp_path):
+    dut = mut.Library.create(tmp_path / "lib", X_tool0_E=X_TOOL0_E)
+    dut.add(make_demo(1), "screw_cw", "screw clockwise")
+    dut.add(make_demo(2), "pour", "pouring")
+    return dut
+
+
+# ------------------------------------------------------------------------- basics
+
+
+def test_add_then_open_round_trips(library, tmp_path):
+    reopened = mut.Library.open(tmp_path / "lib")
+    assert reopened.names == ("screw_cw", "pour")
+    assert not reopened.read_only
+    np.testing.assert_allclose(reopened.X_tool0_E.GetAsMatrix4(), X_TOOL0_E.GetAsMatrix4(), atol=1e-15)
+    demo = reopened.demonstration("pour")
+    expected = make_demo(2)
+    np.testing.assert_array_equal(demo.timestamps, expected.timestamps)
+    np.testing.assert_array_equal(demo.joint_positions, expected.joint_positions)
+    assert demo.description == "pouring" and demo.name == "pour"
+    entry = reopened.entry("pour")
+    assert entry.file == "demos/pour.csv" and entry.samples == 60
+    assert entry.duration_s == pytest.approx(2.0)
+    assert reopened.log_path("pour") == (tmp_path / "lib" / "demos" / "pour.csv").resolve()
+    manifest = json.loads((tmp_path / "lib" / "library.json").read_text())
+    assert manifest["schema_version"] == 1
+    assert [d["name"] for d in manifest["demos"]] == ["screw_cw", "pour"]
+    assert "pour" in reopened and "stack" not in reopened and len(reopened) == 2
+
+
+def test_features_recomputed_from_logs_equal_cached(library, tmp_path):
+    root = tmp_path / "lib"
+    assert (root / "cache" / "pour.npz").is_file()
+    cached = mut.Library.open(root).feature("pour")
+    # Independently: FK of the log with the library's frame, then Feature.from_poses.
+    kinematics = UR5eKinematics(X_tool0_E=X_TOOL0_E)
+    D = dual_quaternions_from_demonstration(make_demo(2), kinematics)
+    recomputed = Feature.from_poses(D)
+    for name in ("rotations", "translations", "deltas", "poses"):
+        np.testing.assert_allclose(getattr(cached, name), getattr(recomputed, name), atol=1e-12)
+    np.testing.assert_array_equal(mut.Library.open(root).resampled_poses("pour"), cached.poses)
+    np.testing.assert_allclose(cached.poses[[0, -1]], D[[0, -1]], atol=1e-12)
+
+
+def test_stale_or_missing_cache_is_recomputed_and_rewritten(library, tmp_path):
+    root = tmp_path / "lib"
+    cache = root / "cache" / "pour.npz"
+    reference = np.array(mut.Library.open(root).feature("pour").deltas)
+    cache.write_bytes(b"garbage")
+    np.testing.assert_array_equal(mut.Library.open(root).feature("pour").deltas, reference)
+    assert cache.read_bytes() != b"garbage"
+    # A cache whose key does not match (another log) is not trusted.
+    cache.write_bytes((root / "cache" / "screw_cw.npz").read_bytes())
+    np.testing.assert_array_equal(mut.Library.open(root).feature("pour").deltas, reference)
+    cache.unlink()
+    np.testing.assert_array_equal(mut.Library.open(root).feature("pour").deltas, reference)
+    assert cache.is_file()
+
+
+def test_changed_log_invalidates_cache(library, tmp_path):
+    root = tmp_path / "lib"
+    before = np.array(mut.Library.open(root).feature("pour").deltas)
+    other = make_demo(7)
+    from drake_lfd.demonstrations import write_rtde_csv
+
+    write_rtde_csv(other, root / "demos" / "pour.csv")  # same sample count, other motion
+    after = mut.Library.open(root).feature("pour").deltas
+    assert not np.allclose(before, after)
+
+
+def test_remove_updates_manifest_and_deletes_log(library, tmp_path):
+    root = tmp_path / "lib"
+    library.remove("screw_cw")
+    assert library.names == ("pour",)
+    assert mut.Library.open(root).names == ("pour",)
+    assert not (root / "demos" / "screw_cw.csv").exists()
+    assert not (root / "cache" / "screw_cw.npz").exists()
+    with pytest.raises(InputError, match="no demonstration 'screw_cw'"):
+        library.remove("screw_cw")
+
+
+@pytest.mark.parametrize("name", ["", "has space", "a/b", "../x", "é", "x.csv"])
+def test_invalid_names_refused(library, tmp_path, name):
+    before = tree_digest(tmp_path / "lib")
+    with pytest.raises(InputError, match="name"):
+        library.add(make_demo(3), name)
+    assert tree_digest(tmp_path / "lib") == before
+
+
+def test_duplicate_names_refused_ignoring_case(library, tmp_path):
+    before = tree_digest(tmp_path / "lib")
+    for name in ("pour", "POUR"):
+        with pytest.raises(InputError, match="already"):
+            library.add(make_demo(3), name)
+    assert tree_digest(tmp_path / "lib") == before
+
+
+def test_motionless_and_invalid_demonstrations_refused(library, tmp_path):
+    before = tree_digest(tmp_path / "lib")
+    still = Demonstration("still", np.arange(5.0), np.tile(Q_HOME, (5, 1)))
+    with pytest.raises(InputError, match="does not move"):
+        library.add(still, "still")
+    backwards = make_demo(3)
+    backwards = Demonstration("b", backwards.timestamps[::-1], backwards.joint_positions)
+    with pytest.raises(InputError, match="strictly increase"):
+        library.add(backwards, "backwards")
+    assert tree_digest(tmp_path / "lib") == before
+
+
+# ---------------------------------------------------------------------- durability
+
+
+class Crash(Exception):
+    pass
+
+
+@pytest.mark.parametrize("failing_call", [1, 2])
+def test_crash_mid_add_leaves_library_intact(library, tmp_path, monkeypatch, failing_call):
+    """os.replace fails on the log (1) or on the manifest (2): nothing changes."""
+    root = tmp_path / "lib"
+    before = tree_digest(root)
+    real_replace = os.replace
+    calls = []
+
+    def crashing_replace(source, destination):
+        calls.append(destination)
+        if len(calls) == failing_call:
+            raise Crash("power cut")
+        return real_replace(source, destination)
+
+    monkeypatch.setattr(os, "replace", crashing_replace)
+    with pytest.raises(Crash):
+        library.add(make_demo(5), "stack", "stacking")
+    monkeypatch.setattr(os, "replace", real_replace)
+    assert str(calls[-1]).endswith("stack.csv" if failing_call == 1 else "library.json")
+    assert tree_digest(root) == before
+    reopened = mut.Library.open(root)
+    assert reopened.names == ("screw_cw", "pour")
+    np.testing.assert_array_equal(reopened.demonstration("pour").joint_positions, make_demo(2).joint_positions)
+    reopened.add(make_demo(5), "stack")  # and it can still be extended
+    assert mut.Library.open(root).names == ("screw_cw", "pour", "stack")
+
+
+def test_crash_mid_remove_leaves_library_intact(library, tmp_path, monkeypatch):
+    root = tmp_path / "lib"
+    before = tree_digest(root)
+
+    def crashing_replace(source, destination):
+        raise Crash("power cut")
+
+    monkeypatch.setattr(os, "replace", crashing_replace)
+    with pytest.raises(Crash):
+        library.remove("pour")
+    monkeypatch.undo()
+    assert tree_digest(root) == before
+    assert mut.Library.open(root).names == ("screw_cw", "pour")
+
+
+def test_unreferenced_log_from_a_crash_is_ignored_then_overwritten(library, tmp_path):
+    root = tmp_path / "lib"
+    (root / "demos" / "stack.csv").write_text("half a log")  # killed between log and manifest
+    reopened = mut.Library.open(root)
+    assert reopened.names == ("screw_cw", "pour")
+    reopened.add(make_demo(5), "stack")
+    np.testing.assert_array_equal(
+        mut.Library.open(root).demonstration("stack").joint_positions, make_demo(5).joint_positions
+    )
+
+
+# ----------------------------------------------------------------- corrupt manifests
+
+
+def corrupt(root, change):
+    manifest = root / "library.json"
+    data = json.loads(manifest.read_text())
+    change(data)
+    manifest.write_text(json.dumps(data))
+
+
+def test_bad_json_names_line(library, tmp_path):
+    manifest = tmp_path / "lib" / "library.json"
+    manifest.write_text(manifest.read_text()[:-20])
+    with pytest.raises(InputError, match=r"library\.json: line \d+ column \d+: not valid JSON"):
+        mut.Library.open(tmp_path / "lib")
+
+
+@pytest.mark.parametrize(
+    "change, field",
+    [
+        (lambda d: d.update(schema_version=2), "schema_version"),
+        (lambda d: d.pop("X_tool0_E"), "X_tool0_E"),
+        (lambda d: d["X_tool0_E"].update(q_wxyz=[1, 1, 0, 0]), "X_tool0_E.q_wxyz"),
+        (lambda d: d["X_tool0_E"].update(p=[0, float("nan"), 0]), "X_tool0_E.p[1]"),
+        (lambda d: d["demos"][1].pop("samples"), "demos[1].samples"),
+        (lambda d: d["demos"][0].update(file="demos/absent.csv"), "demos[0].file"),
+        (lambda d: d["demos"][0].update(file="../../etc/passwd"), "demos[0].file"),
+        (lambda d: d["demos"][1].update(name="screw_cw"), "demos[1].name"),
+        (lambda d: d["demos"][0].update(colour="red"), "demos[0].colour"),
+        (lambda d: d.update(demos={}), "demos"),
+    ],
+)
+def test_corrupt_manifest_names_file_and_field(library, tmp_path, change, field):
+    corrupt(tmp_path / "lib", change)
+    with pytest.raises(InputError) as info:
+        mut.Library.open(tmp_path / "lib")
+    assert f"library.json: {field}:" in str(info.value)
+
+
+def test_missing_log_is_refused(library, tmp_path):
+    (tmp_path / "lib" / "demos" / "pour.csv").unlink()
+    with pytest.raises(InputError, match=r"demos\[1\]\.file: the joint log demos/pour.csv is missing"):
+        mut.Library.open(tmp_path / "lib")
+
+
+def test_damaged_log_is_refused_when_read(library, tmp_path):
+    log = tmp_path / "lib" / "demos" / "pour.csv"
+    log.write_text(log.read_text()[:-30])
+    with pytest.raises(InputError, match="pour.csv"):
+        mut.Library.open(tmp_path / "lib").demonstration("pour")
+
+
+# ------------------------------------------------------------------ names and frames
+
+
+def test_unknown_library_lists_what_was_tried(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError) as info:
+        mut.Library.open("paper5")
+    message = str(info.value)
+    assert message.startswith("paper5: no such library")
+    assert str(tmp_path / "paper5") in message
+    for directory in mut.bundled_library_directories():
+        assert str(directory) in message
+    with pytest.raises(InputError, match="not a drake-lfd library"):
+        mut.Library.open(tmp_path)
+
+
+def test_bundled_library_by_name_is_read_only(library, tmp_path, monkeypatch):
+    bundled = tmp_path / "bundled"
+    bundled.mkdir()
+    os.replace(tmp_path / "lib", bundled / "mine")
+    monkeypatch.setattr(mut, "bundled_library_directories", lambda: (tmp_path / "nowhere", bundled))
+    monkeypatch.chdir(tmp_path)
+    assert mut.bundled_library_names() == ["mine"]
+    dut = mut.Library.open("mine")
+    assert dut.read_only and dut.label == "mine"
+    before = tree_digest(bundled)
+    assert dut.feature("pour") is not None
+    with pytest.raises(InputError, match="read-only"):
+        dut.add(make_demo(4), "stack")
+    with pytest.raises(InputError, match="read-only"):
+        dut.remove("pour")
+    assert tree_digest(bundled) == before
+
+
+def test_create_refuses_existing_content(library, tmp_path):
+    with pytest.raises(InputError, match="already"):
+        mut.Library.create(tmp_path / "lib")
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "notes.txt").write_text("x")
+    with pytest.raises(InputError, match="not empty"):
+        mut.Library.create(tmp_path / "full")
+    (tmp_path / "empty").mkdir()
+    assert mut.Library.create(tmp_path / "empty").names == ()
+    assert mut.Library.open(tmp_path / "empty").names == ()
+
+
+def test_end_effector_frame_mismatch_refused(library):
+    mut.check_end_effector_frame(library, RigidTransform(X_TOOL0_E), "task.yaml")
+    moved = RigidTransform(X_TOOL0_E.rotation(), X_TOOL0_E.translation() + [0, 0, 1e-6])
+    with pytest.raises(InputError) as info:
+        mut.check_end_effector_frame(library, moved, "task.yaml")
+    assert str(info.value).startswith("task.yaml: X_tool0_E: ")
+    with pytest.raises(InputError, match="X_tool0_E"):
+        mut.check_end_effector_frame(library, RigidTransform(), "task.yaml")
+
+
+# ------------------------------------------------------------------- pose records
+
+
+def test_pose_json_round_trip():
+    pose = pose_json_from_rigid_transform(X_TOOL0_E)
+    assert set(pose) == {"p", "q_wxyz"} and pose["q_wxyz"][0] >= 0
+    json.dumps(pose)  # plain floats
+    X = rigid_transform_from_pose_json(pose)
+    np.testing.assert_allclose(X.GetAsMatrix4(), X_TOOL0_E.GetAsMatrix4(), atol=1e-15)
+    slightly_off = dict(pose, q_wxyz=[v * (1 + 5e-7) for v in pose["q_wxyz"]])
+    np.testing.assert_allclose(
+        rigid_transform_from_pose_json(slightly_off).GetAsMatrix4(), X_TOOL0_E.GetAsMatrix4(), atol=1e-6
+    )
+
+
+@pytest.mark.parametrize(
+    "value, field",
+    [
+        ({"p": [0, 0], "q_wxyz": [1, 0, 0, 0]}, "X.p"),
+        ({"p": [0, 0, "a"], "q_wxyz": [1, 0, 0, 0]}, "X.p[2]"),
+        ({"p": [0, 0, 0], "q_wxyz": [1, 0, 0, float("inf")]}, "X.q_wxyz[3]"),
+        ({"p": [0, 0, 0], "q_wxyz": [1, 0.01, 0, 0]}, "X.q_wxyz"),
+        ({"p": [0, 0, 0]}, "X"),
+        ({"p": [0, 0, 0], "q_wxyz": [1, 0, 0, 0], "rpy": [0, 0, 0]}, "X"),
+        ([0, 0, 0], "X"),
+    ],
+)
+def test_pose_json_refusals_name_the_field(value, field):
+    with pytest.raises(InputError) as info:
+        rigid_transform_from_pose_json(value, file="f.json", field="X")
+    assert str(info.value).startswith(f"f.json: {field}: ")
