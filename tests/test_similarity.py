@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import drake_lfd.similarity as mut
+from drake_lfd.synthetic_library import PAPER5, synthetic_features
 from drake_lfd.dual_quaternion import (
     dual_quaternion_from_euler_zyx,
     dual_quaternion_from_pose,
@@ -145,36 +146,9 @@ def test_allocation_applies_the_short_translation_rule():
 
 # ---- the paper's case study (Section 6, SPEC 2 and 10) --------------------------------
 
-# Start pose of every demo: tool pointing down (body z = world -z).
-START = dual_quaternion_from_euler_zyx([0.4, 0.1, 0.3], [0.0, 0.0, np.pi])
-
-
-def demo(body_axis, angle, body_translation, num=150):
-    """A demo turning ``angle`` about a body axis while moving ``body_translation``."""
-    s = np.linspace(0.0, 1.0, num)[:, None]
-    rotations = quaternion_from_axis_angle(body_axis, angle * s[:, 0])
-    motion = dual_quaternion_from_pose(s * body_translation, rotations)
-    return dual_quaternion_multiply(START, motion)
-
-
-def stacking_demo():
-    up = np.linspace([0, 0, 0], [0, 0, -0.1], 40)  # body -z is world up
-    over = np.linspace([0, 0, -0.1], [0.2, 0, -0.1], 60)[1:]
-    down = np.linspace([0.2, 0, -0.1], [0.2, 0, 0], 40)[1:]
-    positions = np.concatenate([up, over, down])
-    return dual_quaternion_multiply(START, dual_quaternion_from_pose(positions, [1.0, 0, 0, 0]))
-
-
 @pytest.fixture(scope="module")
 def library():
-    quarter = np.pi / 2
-    return {
-        "screw_cw": Feature.from_poses(demo(Z_AXIS, -quarter, [0, 0, 0.1])),
-        "screw_ccw": Feature.from_poses(demo(Z_AXIS, quarter, [0, 0, 0.1])),
-        "filling": Feature.from_poses(demo(Y_AXIS, quarter, [0.1, 0, -0.1])),
-        "pouring": Feature.from_poses(demo(Y_AXIS, -quarter, [-0.1, 0, 0.1])),
-        "stacking": Feature.from_poses(stacking_demo()),
-    }
+    return synthetic_features(PAPER5)
 
 
 def segment(body_axis, angle, body_translation):
