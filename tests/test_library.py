@@ -270,10 +270,10 @@ def test_damaged_log_is_refused_when_read(library, tmp_path):
 def test_unknown_library_lists_what_was_tried(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(InputError) as info:
-        mut.Library.open("paper5")
+        mut.Library.open("no_such_bundle")
     message = str(info.value)
-    assert message.startswith("paper5: no such library")
-    assert str(tmp_path / "paper5") in message
+    assert message.startswith("no_such_bundle: no such library")
+    assert str(tmp_path / "no_such_bundle") in message
     for directory in mut.bundled_library_directories():
         assert str(directory) in message
     with pytest.raises(InputError, match="not a drake-lfd library"):
