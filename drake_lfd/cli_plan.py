@@ -54,7 +54,7 @@ def run(args) -> int:
     check_end_effector_frame(library, task.X_tool0_E, file=args.task)
     policy = load_policy_for(args)
     trial = draw_trial(task, args.seed)
-    result = plan_task(trial, library_features(library), planner=args.planner, policy=policy)
+    result = plan_task(trial, library_features(library), planner=args.planner, policy=policy, seed=args.seed)
     if args.json:
         atomic_write_json(Path(args.json), plan_json(result))
     if result.planned:

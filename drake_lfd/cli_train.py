@@ -20,6 +20,11 @@ def add_parser(subparsers) -> None:
     )
     parser.add_argument("--library", required=True, metavar="LIB")
     parser.add_argument("--random-tasks", type=int, default=20, metavar="N")
+    parser.add_argument(
+        "--chained-tasks", type=int, default=None, metavar="M",
+        help="also train on M tasks chained from the library's demonstrations (default 0: the paper's "
+             "random tasks only, which a small library rarely covers)",
+    )
     parser.add_argument("--episodes", type=int, default=100, metavar="E")
     parser.add_argument("--seed", type=int, default=0, metavar="S")
     parser.add_argument("--out", required=True, metavar="POLICY", help="policy file to write (JSON)")
@@ -40,9 +45,15 @@ def run(args) -> int:
     from drake_lfd.q_learning import QPolicy, episodes_to_steady
     from drake_lfd.training import train_on_random_tasks
 
-    for field, value in (("--random-tasks", args.random_tasks), ("--episodes", args.episodes)):
-        if value < 1:
-            raise InputError(f"must be at least 1, got {value}", field=field)
+    from drake_lfd.training import DEFAULT_CHAINED_TASKS
+
+    chained = DEFAULT_CHAINED_TASKS if args.chained_tasks is None else args.chained_tasks
+    for field, value, least in (("--random-tasks", args.random_tasks, 0), ("--episodes", args.episodes, 1),
+                                ("--chained-tasks", chained, 0)):
+        if value < least:
+            raise InputError(f"must be at least {least}, got {value}", field=field)
+    if args.random_tasks + chained == 0:
+        raise InputError("needs at least one training task", field="--random-tasks")
     if args.seed < 0:
         raise InputError("must be a non-negative integer", field="--seed")
     out = Path(args.out)
@@ -55,7 +66,7 @@ def run(args) -> int:
     features = library_features(library)
     bar = ProgressBar("training", args.episodes)
     result = train_on_random_tasks(
-        features, num_tasks=args.random_tasks, episodes=args.episodes, seed=args.seed,
+        features, num_tasks=args.random_tasks, num_chained_tasks=chained, episodes=args.episodes, seed=args.seed,
         warm_start=warm, progress=lambda done, total: bar.update(done),
     )
     bar.close()
@@ -65,6 +76,7 @@ def run(args) -> int:
     summary = {
         "library": library.label,
         "tasks": args.random_tasks,
+        "chained_tasks": chained,
         "episodes": args.episodes,
         "seed": args.seed,
         "warm_start": args.warm_start,
@@ -78,6 +90,6 @@ def run(args) -> int:
     }
     if args.json:
         atomic_write_json(Path(args.json), summary)
-    print(f"trained on {args.random_tasks} random tasks x {args.episodes} episodes in "
+    print(f"trained on {args.random_tasks} random + {chained} chained tasks x {args.episodes} episodes in "
           f"{result.wall_time_s:.2f} s (steady after {steady} episodes); wrote {out} and {figure}")
     return 0

@@ -70,7 +70,11 @@ def plan_json(result: PlanResult) -> dict:
         "uncovered": uncovered_json(result),
     }
     if result.planner == "q":
-        document["q_planner"] = {"greedy_completed": result.greedy_completed, "fallback": result.fallback}
+        document["q_planner"] = {
+            "greedy_completed": result.greedy_completed,
+            "fallback": result.fallback,
+            "refine_episodes": result.refine_episodes,
+        }
     return document
 
 

@@ -28,7 +28,7 @@ from drake_lfd.dual_quaternion import (
 from drake_lfd.exact_planner import plan_exact
 from drake_lfd.features import Feature
 from drake_lfd.mapping import map_segment
-from drake_lfd.q_learning import QPolicy, plan_q
+from drake_lfd.q_learning import DEFAULT_REFINE_EPISODES, QPolicy, plan_q
 from drake_lfd.similarity import Tolerances
 from drake_lfd.tasks import ConcreteTask, angle_candidates
 from drake_lfd.timing import (
@@ -83,6 +83,7 @@ class PlanResult:
     uncovered: tuple[UncoveredSegment, ...] = ()
     greedy_completed: bool | None = None
     fallback: str | None = None
+    refine_episodes: int = 0
 
     @property
     def planned(self) -> bool:
@@ -193,8 +194,11 @@ def plan_task(
     max_span: int | None = None,
     max_speed_m_s: float = DEFAULT_MAX_SPEED_M_S,
     max_angular_speed_rad_s: float = DEFAULT_MAX_ANGULAR_SPEED_RAD_S,
+    refine_episodes: int = DEFAULT_REFINE_EPISODES,
+    seed: int = 0,
 ) -> PlanResult:
-    """Plans one concrete task with the named planner (``exact`` or ``q``)."""
+    """Plans one concrete task with the named planner (``exact`` or ``q``; the Q-planner
+    first refines on the task for ``refine_episodes`` episodes, seeded by ``seed``)."""
     if planner not in PLANNERS:
         raise ValueError(f"planner must be one of {PLANNERS}, got {planner!r}")
     if planner == "q" and policy is None:
@@ -205,7 +209,7 @@ def plan_task(
     if planner == "exact":
         steps = plan_exact(problem)
     else:
-        q_plan = plan_q(problem, policy)
+        q_plan = plan_q(problem, policy, refine_episodes=refine_episodes, seed=seed)
         steps, greedy_completed, fallback = q_plan.steps, q_plan.greedy_completed, q_plan.fallback
     nominal = np.array([a[len(a) // 2] for a in angles])
     if steps is None:
@@ -213,6 +217,7 @@ def plan_task(
             "demonstration_requested", planner, task, nominal,
             uncovered=tuple(uncovered_segments(problem)),
             greedy_completed=greedy_completed, fallback=fallback,
+            refine_episodes=refine_episodes if planner == "q" else 0,
         )
     path, critical, chosen, costs, max_position, max_rotation = compose_plan(problem, steps, features, angles)
     timed = time_plan(
@@ -225,4 +230,5 @@ def plan_task(
     return PlanResult(
         "planned", planner, task, chosen, composition, float(sum(costs)), timed,
         max_position, max_rotation, (), greedy_completed, fallback,
+        refine_episodes if planner == "q" else 0,
     )

@@ -21,6 +21,7 @@ from drake_lfd.dual_quaternion import (
     dual_quaternion_multiply,
     dual_quaternion_relative,
     pose_from_dual_quaternion,
+    quaternion_from_axis_angle,
 )
 from drake_lfd.features import Feature
 from drake_lfd.tasks import ConcreteTask
@@ -50,13 +51,18 @@ def chained_task(
     features: Mapping[str, Feature],
     num_cons: int = 4,
     name: str = "chained",
+    perturbation_deg: float = 0.0,
+    perturbation_m: float = 0.0,
 ) -> tuple[ConcreteTask, list[str]]:
     """A task whose segments are pieces of randomly chosen demonstrations, placed rigidly.
 
     The gaps con_1 -> con_n are split into runs of 1 or 2 segments; each run is covered
     by one randomly chosen demo (a 2-segment run passes through one of the demo's middle
     samples). The first con is placed at a random pose in the training cube; each run
-    starts where the previous one ended. Returns the task and the demo names used.
+    starts where the previous one ended. With ``perturbation_deg`` / ``perturbation_m``,
+    every con after the first is then turned about a random axis by up to that angle and
+    moved by up to that distance, so the task is similar to the demos without being an
+    exact copy (costs become informative). Returns the task and the demo names used.
     """
     names = list(features)
     start = dual_quaternion_from_pose(
@@ -76,7 +82,17 @@ def chained_task(
         poses.extend(dual_quaternion_multiply(poses[-1], relative[1:]))
         used.append(demo)
         gaps -= run
-    positions, quaternions = pose_from_dual_quaternion(np.array(poses))
+    poses = np.array(poses)
+    if perturbation_deg > 0.0 or perturbation_m > 0.0:
+        count = len(poses) - 1
+        angles = np.radians(perturbation_deg) * rng.uniform(0.0, 1.0, count)
+        axes = rng.normal(size=(count, 3))
+        axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+        shifts = rng.normal(size=(count, 3))
+        shifts *= perturbation_m * rng.uniform(0.0, 1.0, (count, 1)) / np.linalg.norm(shifts, axis=1, keepdims=True)
+        poses[1:] = dual_quaternion_multiply(
+            poses[1:], dual_quaternion_from_pose(shifts, quaternion_from_axis_angle(axes, angles)))
+    positions, quaternions = pose_from_dual_quaternion(poses)
     euler = np.array([_euler_zyx_of(q) for q in quaternions])
     return ConcreteTask.from_fixed(name, positions, euler), used
 

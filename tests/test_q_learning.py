@@ -1,0 +1,85 @@
+"""Q-learning: reproducibility, policy files, warm start, refinement, steadiness."""
+
+import json
+
+import numpy as np
+import pytest
+
+import drake_lfd.q_learning as mut
+from drake_lfd.errors import InputError
+from drake_lfd.exact_planner import plan_exact
+from drake_lfd.planning import build_problem
+from drake_lfd.random_tasks import chained_task
+from drake_lfd.synthetic_library import PAPER5, PAPER6, synthetic_features
+from drake_lfd.training import train_on_random_tasks
+
+
+@pytest.fixture(scope="module")
+def features():
+    return synthetic_features(PAPER5)
+
+
+@pytest.fixture(scope="module")
+def trained(features):
+    return train_on_random_tasks(features, num_tasks=10, num_chained_tasks=10, episodes=30, seed=4)
+
+
+def test_training_is_seeded_and_reproducible(features, trained):
+    again = train_on_random_tasks(features, num_tasks=10, num_chained_tasks=10, episodes=30, seed=4)
+    assert again.policy.values == trained.policy.values
+    np.testing.assert_array_equal(again.rewards, trained.rewards)
+    other = train_on_random_tasks(features, num_tasks=10, num_chained_tasks=10, episodes=30, seed=5)
+    assert other.policy.values != trained.policy.values
+
+
+def test_learning_improves_the_average_reward(trained):
+    curve = trained.curve
+    assert curve.shape == (30,)
+    assert curve[-10:].mean() > curve[:5].mean()
+
+
+def test_policy_file_round_trip_and_warm_start(features, trained, tmp_path):
+    path = tmp_path / "policy.json"
+    trained.policy.save(path)
+    loaded = mut.QPolicy.load(path)
+    assert loaded.values == pytest.approx(trained.policy.values)
+    assert loaded.parameters == trained.policy.parameters
+    assert json.loads(path.read_text())["format_version"] == mut.POLICY_FORMAT_VERSION
+    six = synthetic_features(PAPER6)
+    warm = train_on_random_tasks(six, num_tasks=5, episodes=5, seed=1, warm_start=loaded)
+    assert warm.policy.training_episodes == loaded.training_episodes + 5
+    assert set(loaded.values) <= set(warm.policy.values)
+    assert loaded.values == pytest.approx(trained.policy.values)  # the old table is untouched
+
+
+@pytest.mark.parametrize("text, field", [
+    ("{", "not a JSON policy"),
+    ('{"format_version": 99, "values": {}}', "format_version"),
+    ('{"format_version": 1, "values": {"a": "x"}, "parameters": {}, "library_demos": []}', "malformed"),
+])
+def test_bad_policy_files_are_input_errors(tmp_path, text, field):
+    path = tmp_path / "p.json"
+    path.write_text(text)
+    with pytest.raises(InputError, match=field):
+        mut.QPolicy.load(path)
+
+
+def test_refined_greedy_walk_is_near_optimal_and_never_changes_the_policy(features, trained):
+    rng = np.random.default_rng(77)
+    before = dict(trained.policy.values)
+    refined, optimal = [], []
+    for _ in range(20):
+        task, _ = chained_task(rng, features, perturbation_deg=15, perturbation_m=0.02)
+        problem = build_problem(task, features)
+        steps = mut.greedy_walk(problem, trained.policy, refine_episodes=100)
+        assert steps is not None
+        refined.append(sum(s.cost for s in steps))
+        optimal.append(sum(s.cost for s in plan_exact(problem)))
+    assert np.mean(refined) <= 1.05 * np.mean(optimal)
+    assert trained.policy.values == before
+
+
+def test_episodes_to_steady():
+    curve = np.concatenate([np.linspace(-10, -1, 40), np.full(60, -1.0)])
+    assert 35 <= mut.episodes_to_steady(curve) <= 40
+    assert mut.episodes_to_steady(np.full(100, -2.0)) == 0
