@@ -147,13 +147,63 @@ def _reachable_candidates(problem: CompositionProblem) -> list[list[int]]:
     return [sorted(r) for r in reachable]
 
 
+TWIST_CANDIDATES_RAD = np.radians(np.arange(0.0, 360.0, 30.0))
+# A mapped path this far from every keep-out box is clear; among clear twists the one
+# closest to the paper's shortest alignment (twist 0) is kept.
+CLEARANCE_GOAL_M = 0.05
+
+
+def box_signed_distance(points: np.ndarray, centre: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Signed distance of points (n, 3) to an axis-aligned box (negative inside), (n,)."""
+    q = np.abs(points - centre) - np.asarray(size) / 2.0
+    outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+    return outside + np.minimum(q.max(axis=1), 0.0)
+
+
+def path_clearance(poses: np.ndarray, keep_out=(), floor_z: float | None = None) -> float:
+    """Least distance of the tool path (positions of ``poses`` (n, 8)) to the keep-out
+    boxes and above ``floor_z`` (inf with neither)."""
+    p = translation_from_dual_quaternion(poses)
+    clearance = np.inf
+    for box in keep_out:
+        clearance = min(clearance, float(box_signed_distance(p, box.centre, box.size).min()))
+    if floor_z is not None:
+        clearance = min(clearance, float(p[:, 2].min() - floor_z))
+    return clearance
+
+
+def map_span_clear(feature_poses, allocation, task_poses, keep_out=(), floor_z=None):
+    """Maps a demo onto a span, choosing the free twist about the task's first translation
+    (SPEC 6) that keeps the tool path clear of the keep-out boxes and the floor.
+
+    Twist 0 (the paper's shortest alignment) is kept when its path is at least
+    ``CLEARANCE_GOAL_M`` clear; otherwise the twist (30 deg steps) with the most clearance,
+    up to that goal, then the smallest turn. Returns the MappedSegment and the twist.
+    """
+    if not keep_out and floor_z is None:
+        return map_segment(feature_poses, allocation, task_poses), 0.0
+    best = None
+    for twist in TWIST_CANDIDATES_RAD:
+        mapped = map_segment(feature_poses, allocation, task_poses, twist_rad=float(twist))
+        clearance = min(path_clearance(mapped.poses, keep_out, floor_z), CLEARANCE_GOAL_M)
+        turn = min(twist, 2 * np.pi - twist)
+        score = (clearance, -turn)
+        if best is None or score > best[0]:
+            best = (score, mapped, float(twist))
+        if twist == 0.0 and clearance >= CLEARANCE_GOAL_M:
+            break
+    return best[1], best[2]
+
+
 def compose_plan(
     problem: CompositionProblem,
     steps: list[Step],
     features: Mapping[str, Feature],
     angles: list[np.ndarray],
+    keep_out=(),
+    floor_z: float | None = None,
 ) -> tuple[np.ndarray, list[int], np.ndarray, float, float]:
-    """Maps each step's demo onto its span and joins them.
+    """Maps each step's demo onto its span (see :func:`map_span_clear`) and joins them.
 
     Returns poses (N, 8), critical indices (n,), chosen euler_zyx (n, 3), the exact
     cost of each step (its allocation's total alpha), and the largest position and
@@ -174,7 +224,7 @@ def compose_plan(
             [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)]
         )
         feature = features[names[step.demo]]
-        mapped = map_segment(feature.poses, span.allocation, task_poses)
+        mapped, _twist = map_span_clear(feature.poses, span.allocation, task_poses, keep_out, floor_z)
         start = sum(len(p) for p in pieces) - (1 if pieces else 0)
         pieces.append(mapped.poses if not pieces else mapped.poses[1:])
         anchors = np.asarray(mapped.anchor_indices)
@@ -196,6 +246,7 @@ def plan_task(
     max_angular_speed_rad_s: float = DEFAULT_MAX_ANGULAR_SPEED_RAD_S,
     refine_episodes: int = DEFAULT_REFINE_EPISODES,
     seed: int = 0,
+    floor_z: float | None = None,
 ) -> PlanResult:
     """Plans one concrete task with the named planner (``exact`` or ``q``; the Q-planner
     first refines on the task for ``refine_episodes`` episodes, seeded by ``seed``)."""
@@ -219,7 +270,9 @@ def plan_task(
             greedy_completed=greedy_completed, fallback=fallback,
             refine_episodes=refine_episodes if planner == "q" else 0,
         )
-    path, critical, chosen, costs, max_position, max_rotation = compose_plan(problem, steps, features, angles)
+    keep_out = tuple(task.obstacles) + tuple(task.safety_shells)
+    path, critical, chosen, costs, max_position, max_rotation = compose_plan(
+        problem, steps, features, angles, keep_out, floor_z)
     timed = time_plan(
         path, critical, max_speed_m_s=max_speed_m_s, max_angular_speed_rad_s=max_angular_speed_rad_s
     )
