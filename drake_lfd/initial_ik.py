@@ -123,6 +123,16 @@ def initial_guesses(q_nominal: np.ndarray) -> np.ndarray:
     return np.array(guesses)
 
 
+def _centred_turns(q: np.ndarray, plant) -> np.ndarray:
+    """The same pose with every joint that can turn a full circle each way (the UR5e's
+    +-2 pi joints) brought into (-pi, pi], leaving the most room for the motion ahead."""
+    q = np.array(q, dtype=float)
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    full = (upper - lower) >= 4 * np.pi - 1e-9
+    q[full] = np.pi - np.mod(np.pi - q[full], 2 * np.pi)
+    return q
+
+
 def _rotation_angle(R_a: RotationMatrix, R_b: RotationMatrix) -> float:
     return float(R_a.inverse().multiply(R_b).ToAngleAxis().angle())
 
@@ -201,7 +211,7 @@ def solve_initial_configuration(
     guesses = initial_guesses(q_nominal)
     for index, guess in enumerate(guesses):
         result = Solve(prog, guess)
-        q = result.GetSolution(q_variables)
+        q = _centred_turns(result.GetSolution(q_variables), plant)
         plant.SetPositions(kinematics_context, model, q)
         X_WE = plant.CalcRelativeTransform(kinematics_context, world, frame_E)
         position_error = float(np.linalg.norm(X_WE.translation() - p_WE))

@@ -21,6 +21,7 @@ import numpy as np
 from drake_lfd.composition import CompositionProblem, Step
 from drake_lfd.dual_quaternion import (
     axis_angle_from_quaternion,
+    matrices_from_dual_quaternion,
     dual_quaternion_from_euler_zyx,
     dual_quaternion_relative,
     translation_from_dual_quaternion,
@@ -147,10 +148,27 @@ def _reachable_candidates(problem: CompositionProblem) -> list[list[int]]:
     return [sorted(r) for r in reachable]
 
 
+# The flange and the wrist behind it (UR5e: wrist_2's axis is d6 = 0.0996 m behind the
+# flange along tool0's -z), plus the room the links take (wrist housing radius 0.045 m).
+WRIST_BEHIND_FLANGE_M = 0.0996
+LINK_RADIUS_M = 0.05
+
+
+def tool_clearance_points(X_tool0_E) -> np.ndarray:
+    """Points fixed in E to keep clear: E itself, the flange, the wrist behind it,
+    shape (3, 3), expressed in E."""
+    X_E_tool0 = X_tool0_E.inverse()
+    return np.array([
+        [0.0, 0.0, 0.0],
+        X_E_tool0.translation(),
+        X_E_tool0.multiply(np.array([0.0, 0.0, -WRIST_BEHIND_FLANGE_M])),
+    ])
+
+
 TWIST_CANDIDATES_RAD = np.radians(np.arange(0.0, 360.0, 30.0))
 # A mapped path this far from every keep-out box is clear; among clear twists the one
 # closest to the paper's shortest alignment (twist 0) is kept.
-CLEARANCE_GOAL_M = 0.05
+CLEARANCE_GOAL_M = 0.05 + LINK_RADIUS_M
 
 
 def box_signed_distance(points: np.ndarray, centre: np.ndarray, size: np.ndarray) -> np.ndarray:
@@ -160,37 +178,53 @@ def box_signed_distance(points: np.ndarray, centre: np.ndarray, size: np.ndarray
     return outside + np.minimum(q.max(axis=1), 0.0)
 
 
-def path_clearance(poses: np.ndarray, keep_out=(), floor_z: float | None = None) -> float:
-    """Least distance of the tool path (positions of ``poses`` (n, 8)) to the keep-out
-    boxes and above ``floor_z`` (inf with neither)."""
-    p = translation_from_dual_quaternion(poses)
-    clearance = np.inf
+def _clearances(poses: np.ndarray, keep_out=(), floor_z: float | None = None,
+                points_E: np.ndarray | None = None) -> np.ndarray:
+    """Distance of every tracked point along the path to the nearest keep-out box or the
+    floor, shape (n * k,): of the origins of ``poses`` (n, 8), or of ``points_E`` (k, 3),
+    points fixed in E such as the flange and the wrist behind it."""
+    if points_E is None:
+        p = translation_from_dual_quaternion(poses)
+    else:
+        T = matrices_from_dual_quaternion(poses)
+        p = (np.einsum("nij,kj->nki", T[:, :3, :3], np.asarray(points_E)) + T[:, None, :3, 3]).reshape(-1, 3)
+    distance = np.full(len(p), np.inf)
     for box in keep_out:
-        clearance = min(clearance, float(box_signed_distance(p, box.centre, box.size).min()))
+        distance = np.minimum(distance, box_signed_distance(p, box.centre, box.size))
     if floor_z is not None:
-        clearance = min(clearance, float(p[:, 2].min() - floor_z))
-    return clearance
+        distance = np.minimum(distance, p[:, 2] - floor_z)
+    return distance
 
 
-def map_span_clear(feature_poses, allocation, task_poses, keep_out=(), floor_z=None):
+def path_clearance(poses: np.ndarray, keep_out=(), floor_z: float | None = None,
+                   points_E: np.ndarray | None = None) -> float:
+    """Least distance of the tool path to the keep-out boxes and the floor (inf with
+    neither); see :func:`_clearances`."""
+    return float(np.min(_clearances(poses, keep_out, floor_z, points_E), initial=np.inf))
+
+
+def map_span_clear(feature_poses, allocation, task_poses, keep_out=(), floor_z=None, points_E=None):
     """Maps a demo onto a span, choosing the free twist about the task's first translation
     (SPEC 6) that keeps the tool path clear of the keep-out boxes and the floor.
 
-    Twist 0 (the paper's shortest alignment) is kept when its path is at least
-    ``CLEARANCE_GOAL_M`` clear; otherwise the twist (30 deg steps) with the most clearance,
-    up to that goal, then the smallest turn. Returns the MappedSegment and the twist.
+    Each twist (30 deg steps) is scored by the path's total shortfall below
+    ``CLEARANCE_GOAL_M`` (summed over samples and tracked points, so a critical
+    configuration that itself touches a shell does not hide the rest of the path); the
+    least shortfall wins, then the smallest turn. Twist 0, the paper's shortest
+    alignment, is kept when its path is clear. Returns the MappedSegment and the twist.
     """
     if not keep_out and floor_z is None:
         return map_segment(feature_poses, allocation, task_poses), 0.0
     best = None
     for twist in TWIST_CANDIDATES_RAD:
         mapped = map_segment(feature_poses, allocation, task_poses, twist_rad=float(twist))
-        clearance = min(path_clearance(mapped.poses, keep_out, floor_z), CLEARANCE_GOAL_M)
+        distance = _clearances(mapped.poses, keep_out, floor_z, points_E)
+        shortfall = float(np.sum(np.maximum(CLEARANCE_GOAL_M - distance, 0.0)))
         turn = min(twist, 2 * np.pi - twist)
-        score = (clearance, -turn)
+        score = (-shortfall, -turn)
         if best is None or score > best[0]:
             best = (score, mapped, float(twist))
-        if twist == 0.0 and clearance >= CLEARANCE_GOAL_M:
+        if twist == 0.0 and shortfall == 0.0:
             break
     return best[1], best[2]
 
@@ -202,6 +236,7 @@ def compose_plan(
     angles: list[np.ndarray],
     keep_out=(),
     floor_z: float | None = None,
+    points_E: np.ndarray | None = None,
 ) -> tuple[np.ndarray, list[int], np.ndarray, float, float]:
     """Maps each step's demo onto its span (see :func:`map_span_clear`) and joins them.
 
@@ -224,7 +259,7 @@ def compose_plan(
             [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)]
         )
         feature = features[names[step.demo]]
-        mapped, _twist = map_span_clear(feature.poses, span.allocation, task_poses, keep_out, floor_z)
+        mapped, _twist = map_span_clear(feature.poses, span.allocation, task_poses, keep_out, floor_z, points_E)
         start = sum(len(p) for p in pieces) - (1 if pieces else 0)
         pieces.append(mapped.poses if not pieces else mapped.poses[1:])
         anchors = np.asarray(mapped.anchor_indices)
@@ -247,9 +282,15 @@ def plan_task(
     refine_episodes: int = DEFAULT_REFINE_EPISODES,
     seed: int = 0,
     floor_z: float | None = None,
+    clearance_points_E: np.ndarray | None = None,
 ) -> PlanResult:
     """Plans one concrete task with the named planner (``exact`` or ``q``; the Q-planner
-    first refines on the task for ``refine_episodes`` episodes, seeded by ``seed``)."""
+    first refines on the task for ``refine_episodes`` episodes, seeded by ``seed``).
+
+    Each span's free twist keeps the tool path clear of the task's obstacles and shells
+    and above ``floor_z``; ``clearance_points_E`` (k, 3) are the points fixed in E that
+    must stay clear (default: :func:`tool_clearance_points` of the task's ``X_tool0_E``).
+    """
     if planner not in PLANNERS:
         raise ValueError(f"planner must be one of {PLANNERS}, got {planner!r}")
     if planner == "q" and policy is None:
@@ -271,8 +312,9 @@ def plan_task(
             refine_episodes=refine_episodes if planner == "q" else 0,
         )
     keep_out = tuple(task.obstacles) + tuple(task.safety_shells)
+    points_E = tool_clearance_points(task.X_tool0_E) if clearance_points_E is None else clearance_points_E
     path, critical, chosen, costs, max_position, max_rotation = compose_plan(
-        problem, steps, features, angles, keep_out, floor_z)
+        problem, steps, features, angles, keep_out, floor_z, points_E)
     timed = time_plan(
         path, critical, max_speed_m_s=max_speed_m_s, max_angular_speed_rad_s=max_angular_speed_rad_s
     )

@@ -10,7 +10,7 @@ and writes ``sims/demos/<name>.csv``; then it builds
 - ``sims/libraries/paper5/``: screw_cw, screw_ccw, filling, pouring, stacking;
 - ``sims/libraries/paper6/``: the same plus span,
 
-with ``X_tool0_E`` = identity (the demonstrations' frame E is the flange, tool0).
+with the ``X_tool0_E`` the scripts share (the paper scenarios' end-effector frame).
 Everything is seeded (each script carries its seed) and the simulation is
 deterministic, so re-running reproduces the joint logs byte for byte; only the
 manifests' ``added`` times change. Each library is built in a temporary directory beside
@@ -60,9 +60,14 @@ def build_library(library_name, names, *, out=print):
     staging = LIBRARIES_DIRECTORY / f".{library_name}.building"
     if staging.exists():
         shutil.rmtree(staging)
-    library = Library.create(staging)  # X_tool0_E = identity
+    scripts = {name: load_guidance_script(DEMOS_DIRECTORY / f"{name}.yaml") for name in names}
+    X_tool0_E = scripts[names[0]].X_tool0_E
+    for name, script in scripts.items():
+        if not script.X_tool0_E.IsExactlyEqualTo(X_tool0_E):
+            raise RuntimeError(f"{name}.yaml: X_tool0_E differs from {names[0]}.yaml's")
+    library = Library.create(staging, X_tool0_E)
     for name in names:
-        script = load_guidance_script(DEMOS_DIRECTORY / f"{name}.yaml")
+        script = scripts[name]
         demonstration, warnings = read_rtde_csv(DEMOS_DIRECTORY / f"{name}.csv", name=name)
         if warnings:
             raise RuntimeError(f"{name}.csv: {warnings[0]}")

@@ -110,7 +110,7 @@ def test_velocity_limits_respected_where_the_baseline_ignores_them(station):
     V_fast = np.array([0.0, 0.0, 0.0, 3.0, 0.0, 0.0])  # 3 m/s: far beyond the joints
     limited = _controller(station)
     step = (_one_step(limited, Q_HOME, X_start, V_fast) - Q_HOME) / limited.time_step
-    limits = 0.9 * kinematics.velocity_limits()
+    limits = mut_ik.DEFAULT_VELOCITY_LIMIT_FRACTION * kinematics.velocity_limits()
     np.testing.assert_allclose(limited.velocity_limits, limits)
     assert np.all(np.abs(step) <= limits + 1e-9)
     assert np.isclose(np.max(np.abs(step) / limits), 1.0)  # scaled to the binding limit

@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.math import SpatialVelocity
+
+from drake_lfd.tasks import load_task
 from pydrake.systems.analysis import Simulator
 
 import drake_lfd.kinesthetic as mut
@@ -308,7 +310,10 @@ def test_bundled_paper5_features_match_table5():
 def test_bundled_paper6_adds_the_span_demo():
     library = Library.open("paper6")
     assert library.names == ("screw_cw", "screw_ccw", "filling", "pouring", "stacking", "span")
-    assert library.X_tool0_E.IsExactlyIdentity()
+    # The paper scenarios' tool frame, shared by both libraries and every scenario.
+    for scenario in ("transferring", "filling_pouring", "assembling"):
+        task = load_task(Path(__file__).resolve().parent.parent / "sims" / f"{scenario}.yaml")
+        assert library.X_tool0_E.IsNearlyEqualTo(task.X_tool0_E, 1e-12)
     axis, angle = axis_angle_from_quaternion(library.feature("span").rotations[0])
     assert math.degrees(angle) == pytest.approx(90.0, abs=3.0)
     assert axis[0] > math.cos(math.radians(3.0))  # +90 deg about the tool's body x axis
