@@ -1,7 +1,6 @@
 """Simulated kinesthetic demonstrations: guidance scripts, the virtual hand, the RTDE-rate
 recorder, ``drake-lfd record`` and the bundled paper libraries (Table 5)."""
 
-import importlib.util
 import math
 import subprocess
 import sys
@@ -13,6 +12,7 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.math import SpatialVelocity
 
+import drake_lfd.table5 as table5
 from drake_lfd.tasks import load_task
 from pydrake.systems.analysis import Simulator
 
@@ -42,13 +42,6 @@ waypoints:
   - {t: 2.0, p: [0.45, 0.15, 0.27], euler_zyx: [90deg, 0, pi]}
 seed: 7
 """
-
-
-def _load_sims_module(name):
-    spec = importlib.util.spec_from_file_location(f"sims_{name}", SIMS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 # ----------------------------------------------------------------------- scripts
@@ -300,7 +293,6 @@ def test_unreachable_waypoint_is_reported_as_bad_input():
 
 
 def test_bundled_paper5_features_match_table5():
-    table5 = _load_sims_module("table5_comparison")
     rows = table5.compare(Library.open("paper5"))
     assert len(rows) == 15
     matched = [row for row in rows if row.alpha <= 0.15]
