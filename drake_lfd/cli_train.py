@@ -70,9 +70,10 @@ def run(args) -> int:
         warm_start=warm, progress=lambda done, total: bar.update(done),
     )
     bar.close()
-    steady = episodes_to_steady(result.curve)
+    steady = episodes_to_steady(result.greedy_curve)
     result.policy.save(out)
-    figure = training_curve_figure(curve_figure_path(out), result.curve, steady_episode=steady)
+    figure = training_curve_figure(curve_figure_path(out), result.greedy_curve, steady_episode=steady,
+                                   exploring=result.curve)
     summary = {
         "library": library.label,
         "tasks": args.random_tasks,
@@ -82,8 +83,9 @@ def run(args) -> int:
         "warm_start": args.warm_start,
         "wall_time_s": result.wall_time_s,
         "episodes_to_steady": steady,
-        "final_average_reward": float(result.curve[-10:].mean()),
-        "curve": [float(v) for v in result.curve],
+        "final_average_reward": float(result.greedy_curve[-10:].mean()),
+        "curve": [float(v) for v in result.greedy_curve],
+        "exploring_curve": [float(v) for v in result.curve],
         "policy": str(out.resolve()),
         "figure": str(figure.resolve()),
         "table_entries": len(result.policy.values),

@@ -14,15 +14,16 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-def training_curve_figure(path, curve, *, steady_episode=None, title="Training (Fig. 7)") -> Path:
-    """Average accumulated reward per episode over the training tasks, like Fig. 7."""
+def training_curve_figure(path, curve, *, steady_episode=None, exploring=None,
+                          title="Training (Fig. 7)") -> Path:
+    """Accumulated reward per episode (averaged over the training tasks), like Fig. 7:
+    ``curve`` in blue (the greedy policy after each episode), ``exploring`` in grey."""
     curve = np.asarray(curve, dtype=float)
     figure, axes = plt.subplots(figsize=(6, 3.5))
     episodes = np.arange(1, len(curve) + 1)
-    axes.plot(episodes, curve, lw=1, color="0.6", label="average over tasks")
-    if len(curve) >= 10:
-        moving = np.convolve(curve, np.ones(10) / 10, mode="valid")
-        axes.plot(episodes[9:], moving, lw=2, color="C0", label="10-episode mean")
+    if exploring is not None:
+        axes.plot(episodes, exploring, lw=0.8, color="0.7", label="exploring episodes")
+    axes.plot(episodes, curve, lw=2, color="C0", label="greedy policy")
     if steady_episode is not None:
         axes.axvline(steady_episode, color="C3", ls="--", lw=1, label=f"steady from {steady_episode}")
     axes.set_xlabel("episode")

@@ -122,25 +122,33 @@ class QPolicy:
 @dataclasses.dataclass(frozen=True)
 class TrainingResult:
     policy: QPolicy
-    rewards: np.ndarray  # (episodes, tasks) accumulated reward of each episode
+    rewards: np.ndarray  # (episodes, tasks) accumulated reward of each (exploring) episode
     wall_time_s: float
+    greedy_rewards: np.ndarray | None = None  # (episodes, tasks) greedy return after each episode
 
     @property
     def curve(self) -> np.ndarray:
-        """Average accumulated reward per episode over the training tasks (Fig. 7)."""
+        """Average accumulated reward per (exploring) episode over the training tasks."""
         return self.rewards.mean(axis=1)
+
+    @property
+    def greedy_curve(self) -> np.ndarray:
+        """Average return of the greedy policy (epsilon 1, the paper's whole action set)
+        after each episode, over the training tasks: the learning curve of Fig. 7."""
+        return self.greedy_rewards.mean(axis=1)
 
 
 def episodes_to_steady(curve: np.ndarray, window: int = 10, tolerance: float = 0.05) -> int:
-    """First episode from which the ``window``-episode moving average stays within
-    ``tolerance`` (relative to the final level, at least 0.05 absolute) of the final level."""
+    """Episodes before the reward is steady: the number of the last episode whose reward
+    is farther than ``tolerance`` times the curve's range from the final level (the mean
+    of the last ``window`` episodes); 0 if every episode is within it. Meant for the
+    greedy curve, which changes only when learning changes the policy."""
     curve = np.asarray(curve, dtype=float)
-    if len(curve) < window:
-        return len(curve)
-    moving = np.convolve(curve, np.ones(window) / window, mode="valid")
-    final = moving[-1]
-    band = max(tolerance * abs(final), 0.05)
-    outside = np.flatnonzero(np.abs(moving - final) > band)
+    if len(curve) == 0:
+        return 0
+    final = curve[-window:].mean()
+    band = tolerance * (curve.max() - curve.min()) + 1e-9
+    outside = np.flatnonzero(np.abs(curve - final) > band)
     return 0 if len(outside) == 0 else int(outside[-1] + 1)
 
 
@@ -205,13 +213,15 @@ def _illegal_actions(problem, j, legal, max_span) -> list[tuple[int, int]]:
     return [(d, k) for d in range(problem.num_demos) for k in range(j + 1, last + 1) if (d, k) not in covered]
 
 
-def _run_episode(problem, actions_cache, values, parameters, rng, illegal_values=None, demo_names=None) -> float:
+def _run_episode(problem, actions_cache, values, parameters, rng, illegal_values=None, demo_names=None,
+                 learn: bool = True) -> float:
     """One episode of Algorithm 1 (epsilon-greedy, Eq. 33 on afterstates); its reward.
 
     With ``illegal_values`` (training), the agent chooses among the paper's whole action
     set, as Algorithm 1 does: an action that is not similar earns the penalty and ends
     the episode, and its Q is learned, so the reward curve shows the agent learning to
     avoid them (Fig. 7). Without it (plan-time refinement) only legal actions are tried.
+    With ``learn=False`` and ``rng=None`` it is a greedy evaluation: nothing is updated.
     """
     p = parameters
     a = _start_candidate(problem, values, rng, p.epsilon)
@@ -226,18 +236,22 @@ def _run_episode(problem, actions_cache, values, parameters, rng, illegal_values
         legal, illegal = cached
         old = values.get(problem, j, a)
         q = _q_values(problem, values, legal, p.discount)
-        # The afterstate's value is that of its best legal continuation (a dead end: penalty).
-        values.set(problem, j, a, old + p.learning_rate * ((q.max() if legal else penalty) - old))
+        if learn:
+            # The afterstate's value is that of its best legal continuation (a dead end: penalty).
+            values.set(problem, j, a, old + p.learning_rate * ((q.max() if legal else penalty) - old))
         if illegal:
             state = cached_state_key(problem, j, a)
             illegal_keys = [f"{state}|{demo_names[d]}|{k - j}" for d, k in illegal]
             q = np.concatenate([q, [illegal_values.get(key, 0.0) for key in illegal_keys]])
         if len(q) == 0:
             return total + penalty
-        choice = int(np.argmax(q)) if rng.random() < p.epsilon else int(rng.integers(len(q)))
+        greedy = rng is None or rng.random() < p.epsilon
+        choice = int(np.argmax(q)) if greedy else int(rng.integers(len(q)))
         if choice >= len(legal):
             key = illegal_keys[choice - len(legal)]
-            illegal_values[key] = illegal_values.get(key, 0.0) + p.learning_rate * (penalty - illegal_values.get(key, 0.0))
+            if learn:
+                old_q = illegal_values.get(key, 0.0)
+                illegal_values[key] = old_q + p.learning_rate * (penalty - old_q)
             return total + penalty
         step = legal[choice]
         total -= step.cost
@@ -273,14 +287,18 @@ def train(
     caches = [dict() for _ in problems]
     values = _GeneralValues(learned)
     rewards = np.zeros((parameters.episodes, len(problems)))
+    greedy = np.zeros_like(rewards)
     for episode in range(parameters.episodes):
         for t, problem in enumerate(problems):
             rewards[episode, t] = _run_episode(
                 problem, caches[t], values, parameters, rng, learned.illegal_values, learned.library_demos)
+            greedy[episode, t] = _run_episode(
+                problem, caches[t], values, parameters, None, learned.illegal_values, learned.library_demos,
+                learn=False)
         if progress:
             progress(episode + 1, parameters.episodes)
     learned.training_episodes += parameters.episodes
-    return TrainingResult(learned, rewards, time.perf_counter() - start)
+    return TrainingResult(learned, rewards, time.perf_counter() - start, greedy)
 
 
 DEFAULT_REFINE_EPISODES = 100

@@ -111,7 +111,8 @@ def run_trials(
 
 def simulate_json(task: Task, outcomes: list[TrialOutcome], wall_time_s: float) -> dict:
     """The ``simulate --json`` document (INTERFACES.md). Extra per-trial fields:
-    ``status`` (the plan's), ``min_distance_pair`` and ``uncovered``."""
+    ``status`` (the plan's), ``min_distance_pair`` and ``critical_times_s`` (when each
+    critical configuration was due, so the verdict can be re-derived from ``t``/``q``)."""
     trials = []
     for outcome in outcomes:
         entry = {
@@ -126,6 +127,7 @@ def simulate_json(task: Task, outcomes: list[TrialOutcome], wall_time_s: float) 
         if outcome.run is not None:
             entry.update(outcome.run.trial_fields())
             entry["min_distance_pair"] = outcome.run.min_distance_pair
+            entry["critical_times_s"] = [float(e.time_s) for e in outcome.run.critical_errors]
         else:
             entry.update({"critical_errors": [], "min_shell_distance_m": None,
                           "max_joint_speed_fraction": None, "t": [], "q": []})
