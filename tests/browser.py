@@ -35,3 +35,10 @@ def fraction_of_hue(image: np.ndarray, channel: int, margin: float = 0.12) -> fl
     rgb = image[..., :3]
     others = np.delete(rgb, channel, axis=-1).max(axis=-1)
     return float(np.mean(rgb[..., channel] - others > margin))
+
+
+def fraction_of_purple(image: np.ndarray, margin: float = 0.08) -> float:
+    """Fraction of pixels where red and blue both exceed green by ``margin`` (the
+    translucent purple of the safety shells)."""
+    rgb = image[..., :3]
+    return float(np.mean(np.minimum(rgb[..., 0], rgb[..., 2]) - rgb[..., 1] > margin))

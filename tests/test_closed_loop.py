@@ -11,7 +11,7 @@ import drake_lfd.closed_loop as mut
 from drake_lfd.kinematics import shared_kinematics
 from drake_lfd.scene import KinematicScene
 from drake_lfd.tasks import Box, PathConstraint
-from browser import CHROMIUM, fraction_of_hue, screenshot
+from browser import CHROMIUM, fraction_of_hue, fraction_of_purple, screenshot
 
 pytestmark = pytest.mark.slow
 
@@ -100,6 +100,7 @@ def test_html_recording_shows_the_arm_and_the_obstacle(tracked, html_path, tmp_p
     image = screenshot(html_path, tmp_path / "run.png")
     assert fraction_of_hue(image, channel=0) > 0.001  # the red obstacle
     assert fraction_of_hue(image, channel=2) > 0.001  # the UR's blue joint caps
+    assert fraction_of_purple(image) > 0.005  # the translucent purple safety shell
 
 
 @pytest.mark.parametrize(
