@@ -60,7 +60,6 @@ from pathlib import Path
 from typing import Callable, NamedTuple
 
 import numpy as np
-import yaml
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.math import SpatialForce, SpatialVelocity
@@ -69,7 +68,6 @@ from pydrake.multibody.plant import (
     ExternallyAppliedSpatialForce_,
     MultibodyPlant,
 )
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
@@ -100,19 +98,11 @@ from drake_lfd.kinematics import (
     UR5eKinematics,
     add_ur5e,
 )
+from drake_lfd.tasks import PoseSpec
 
-# The YAML plumbing (schema check naming the exact field, duplicate keys refused, angle
-# spellings) is shared with task files, so scripts and tasks report problems alike.
-from drake_lfd.tasks import (
-    PoseSpec,
-    Scalar,
-    _check_schema,
-    _kind_of,
-    _UniqueKeyLoader,
-    _yaml_error,
-    angle_from_text,
-    rigid_transform_from_euler_zyx,
-)
+# The YAML checks (schema check naming the exact field, duplicate keys refused, angle
+# spellings) are shared with task files, so scripts and tasks report problems alike.
+from drake_lfd.yaml_checks import Scalar, finite, load_spec, pose, read_text, required, vector
 
 PLANT_TIME_STEP_S = 1e-3
 DEFAULT_HOLD_S = 0.5
@@ -132,17 +122,13 @@ MAX_WAYPOINT_TURN_RAD = math.radians(179.0)
 # ------------------------------------------------------------------ schema (the YAML)
 
 
-def _required(factory):
-    return dataclasses.field(default_factory=factory, metadata={"required": True})
-
-
 @dataclasses.dataclass
 class WaypointSpec:
     """One guidance waypoint: time ``t`` (s), position ``p`` (m), ``euler_zyx`` (rad)."""
 
-    t: float = _required(float)
-    p: list[float] = _required(list)
-    euler_zyx: list[Scalar] = _required(list)
+    t: float = required(float)
+    p: list[float] = required(list)
+    euler_zyx: list[Scalar] = required(list)
 
 
 @dataclasses.dataclass
@@ -159,11 +145,11 @@ class HandNoiseSpec:
 class GuidanceScriptSpec:
     """A guidance script file as written (structure checked, values not yet)."""
 
-    name: str = _required(str)
+    name: str = required(str)
     description: str = ""
     X_WB: PoseSpec = dataclasses.field(default_factory=PoseSpec)
     X_tool0_E: PoseSpec = dataclasses.field(default_factory=PoseSpec)
-    waypoints: list[WaypointSpec] = _required(list)
+    waypoints: list[WaypointSpec] = required(list)
     hold_s: float = DEFAULT_HOLD_S
     hand_noise: HandNoiseSpec = dataclasses.field(default_factory=HandNoiseSpec)
     seed: int = 0
@@ -251,42 +237,6 @@ class GuidanceScript:
         return np.stack([dual_quaternion_from_rigid_transform(w.X_WE) for w in self.waypoints])
 
 
-def _finite(value, *, file, field, what="a number"):
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"expected {what}, got {_kind_of(value)}", file=file, field=field) from None
-    if not math.isfinite(number):
-        raise InputError(f"{value!r} is not a finite number", file=file, field=field)
-    return number
-
-
-def _angle(value, *, file, field):
-    if isinstance(value, str):
-        number = angle_from_text(value)
-        if number is None:
-            raise InputError(
-                f"{value!r} is not an angle (write radians, a multiple of pi such as -pi/2, "
-                "or degrees such as -90deg)",
-                file=file,
-                field=field,
-            )
-        value = number
-    return _finite(value, file=file, field=field)
-
-
-def _vector(values, count, *, file, field, convert):
-    if len(values) != count:
-        raise InputError(f"expected {count} values, got {len(values)}", file=file, field=field)
-    return np.array([convert(v, file=file, field=f"{field}[{i}]") for i, v in enumerate(values)])
-
-
-def _pose(p, euler_zyx, *, file, field):
-    position = _vector(p, 3, file=file, field=f"{field}.p", convert=_finite)
-    angles = _vector(euler_zyx, 3, file=file, field=f"{field}.euler_zyx", convert=_angle)
-    return rigid_transform_from_euler_zyx(position, angles)
-
-
 def guidance_script_spec_from_text(text, *, file=None) -> GuidanceScriptSpec:
     """Parses a guidance script's YAML into a :class:`GuidanceScriptSpec`.
 
@@ -295,21 +245,7 @@ def guidance_script_spec_from_text(text, *, file=None) -> GuidanceScriptSpec:
     InputError
         Invalid YAML, a duplicated or unknown key, a missing or mistyped value.
     """
-    try:
-        raw = yaml.load(text, Loader=_UniqueKeyLoader)
-    except yaml.YAMLError as error:
-        raise _yaml_error(error, file) from None
-    if raw is None:
-        raise InputError("the guidance script is empty", file=file)
-    if not isinstance(raw, dict):
-        raise InputError(f"expected a mapping of script keys, got {_kind_of(raw)}", file=file)
-    # As pydrake's yaml_load: root keys starting with "_" hold anchors, not script data.
-    raw = {key: value for key, value in raw.items() if not (isinstance(key, str) and key.startswith("_"))}
-    _check_schema(raw, GuidanceScriptSpec, "", file)
-    try:
-        return yaml_load_typed(schema=GuidanceScriptSpec, data=text)
-    except Exception as error:  # anything left is still the file's fault
-        raise InputError(f"cannot load: {error}", file=file) from None
+    return load_spec(text, GuidanceScriptSpec, file=file, document="the guidance script", keys="script keys")
 
 
 def guidance_script_from_spec(spec: GuidanceScriptSpec, *, file=None) -> GuidanceScript:
@@ -323,8 +259,8 @@ def guidance_script_from_spec(spec: GuidanceScriptSpec, *, file=None) -> Guidanc
     """
     if not spec.name.strip():
         raise InputError("a guidance script needs a non-empty name", file=file, field="name")
-    X_WB = _pose(spec.X_WB.p, spec.X_WB.euler_zyx, file=file, field="X_WB")
-    X_tool0_E = _pose(spec.X_tool0_E.p, spec.X_tool0_E.euler_zyx, file=file, field="X_tool0_E")
+    X_WB = pose(spec.X_WB, file=file, field="X_WB")
+    X_tool0_E = pose(spec.X_tool0_E, file=file, field="X_tool0_E")
     if len(spec.waypoints) < 2:
         raise InputError(
             f"has {len(spec.waypoints)} waypoint(s); a guidance needs at least 2", file=file, field="waypoints"
@@ -332,7 +268,7 @@ def guidance_script_from_spec(spec: GuidanceScriptSpec, *, file=None) -> Guidanc
     waypoints = []
     for index, item in enumerate(spec.waypoints):
         field = f"waypoints[{index}]"
-        t = _finite(item.t, file=file, field=f"{field}.t")
+        t = finite(item.t, file=file, field=f"{field}.t")
         if t < 0.0:
             raise InputError(f"times start at 0, got {t:g}", file=file, field=f"{field}.t")
         if waypoints and not t > waypoints[-1].t:
@@ -342,7 +278,7 @@ def guidance_script_from_spec(spec: GuidanceScriptSpec, *, file=None) -> Guidanc
                 file=file,
                 field=f"{field}.t",
             )
-        X_WE = _pose(item.p, item.euler_zyx, file=file, field=field)
+        X_WE = pose(item, file=file, field=field)
         if waypoints:
             turn = waypoints[-1].X_WE.rotation().InvertAndCompose(X_WE.rotation()).ToAngleAxis().angle()
             if turn > MAX_WAYPOINT_TURN_RAD:
@@ -354,7 +290,7 @@ def guidance_script_from_spec(spec: GuidanceScriptSpec, *, file=None) -> Guidanc
                     field=f"{field}.euler_zyx",
                 )
         waypoints.append(Waypoint(t=t, X_WE=X_WE))
-    hold_s = _finite(spec.hold_s, file=file, field="hold_s")
+    hold_s = finite(spec.hold_s, file=file, field="hold_s")
     if hold_s < MIN_HOLD_S:
         raise InputError(
             f"{hold_s:g} s is too short for the arm to settle; use >= {MIN_HOLD_S:g} s", file=file, field="hold_s"
@@ -362,7 +298,7 @@ def guidance_script_from_spec(spec: GuidanceScriptSpec, *, file=None) -> Guidanc
     noise = spec.hand_noise
     sizes = {}
     for key in ("position_m", "rotation_deg", "speed_variation"):
-        value = _finite(getattr(noise, key), file=file, field=f"hand_noise.{key}")
+        value = finite(getattr(noise, key), file=file, field=f"hand_noise.{key}")
         if value < 0.0:
             raise InputError(f"must be >= 0, got {value:g}", file=file, field=f"hand_noise.{key}")
         sizes[key] = value
@@ -372,14 +308,14 @@ def guidance_script_from_spec(spec: GuidanceScriptSpec, *, file=None) -> Guidanc
             file=file,
             field="hand_noise.speed_variation",
         )
-    band = _vector(noise.frequency_hz, 2, file=file, field="hand_noise.frequency_hz", convert=_finite)
+    band = vector(noise.frequency_hz, 2, file=file, field="hand_noise.frequency_hz", convert=finite)
     if not 0.0 < band[0] <= band[1]:
         raise InputError(
             f"expected [low, high] with 0 < low <= high, got [{band[0]:g}, {band[1]:g}]",
             file=file,
             field="hand_noise.frequency_hz",
         )
-    rate = _finite(spec.sample_rate_hz, file=file, field="sample_rate_hz")
+    rate = finite(spec.sample_rate_hz, file=file, field="sample_rate_hz")
     if not 1.0 <= rate <= 1.0 / PLANT_TIME_STEP_S:
         raise InputError(
             f"must be between 1 and {1.0 / PLANT_TIME_STEP_S:g} Hz (the simulation's rate), got {rate:g}",
@@ -419,14 +355,7 @@ def load_guidance_script(path) -> GuidanceScript:
         One line naming the file and the field (see :func:`guidance_script_from_spec`).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("no such file", file=path) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, not a guidance script", file=path) from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise InputError(f"cannot read: {error}", file=path) from None
+    text = read_text(path, directory_problem="is a directory, not a guidance script")
     return guidance_script_from_text(text, file=path)
 
 

@@ -175,11 +175,14 @@ class _GeneralValues:
 
 
 class _TaskValues:
-    """Afterstate values of one task's own states (k, a_k), starting from the policy's.
+    """Afterstate values of one task's own states (k, a_k), for plan-time refinement.
 
-    Plan-time refinement: the general table's estimate seeds each state, and a few
-    episodes of the same Q-learning on the task itself replace the estimate by the
-    task's own values (the paper retrains with Algorithm 1 when a task needs it).
+    Each state starts optimistic, at ``GENERAL_PRIOR_WEIGHT`` times the general table's
+    estimate: the general table orders states the task has not tried yet, and the
+    task's own episodes decide. Seeding with the general estimate itself was measured to
+    mislead: a key that dead-ended in random training tasks stays pessimistic on a task
+    where it does not, and 1000 episodes did not undo it (15 % above the optimum on
+    Table 8 for 3 of 4 training seeds; 0 % with the optimistic start).
     """
 
     def __init__(self, policy: QPolicy):
@@ -190,7 +193,9 @@ class _TaskValues:
         if k == problem.num_cons - 1:
             return 0.0
         value = self.values.get((k, a))
-        return self.policy.value(cached_state_key(problem, k, a)) if value is None else value
+        if value is None:
+            return GENERAL_PRIOR_WEIGHT * self.policy.value(cached_state_key(problem, k, a))
+        return value
 
     def set(self, problem: CompositionProblem, k: int, a: int, value: float) -> None:
         self.values[(k, a)] = value
@@ -302,6 +307,7 @@ def train(
 
 
 DEFAULT_REFINE_EPISODES = 100
+GENERAL_PRIOR_WEIGHT = 1e-4
 
 
 @dataclasses.dataclass(frozen=True)
@@ -317,14 +323,18 @@ def greedy_walk(problem: CompositionProblem, policy: QPolicy, *, refine_episodes
     """Algorithm 2: greedy on Q over legal actions; None if it reaches a dead end.
 
     With ``refine_episodes`` > 0, that many episodes of Algorithm 1 are first run on this
-    task's own states, seeded by the policy's values (the policy itself is not changed).
+    task's own states, seeded by the policy's values (the policy itself is not changed),
+    undiscounted: on one task the objective is its total cost, as for the exact planner.
     """
+    parameters = policy.parameters
     if refine_episodes > 0:
+        # On one task the objective is its total cost, undiscounted, as the exact planner's.
+        parameters = dataclasses.replace(parameters, discount=1.0)
         values = _TaskValues(policy)
         rng = np.random.default_rng(seed)
         cache: dict = {}
         for _ in range(refine_episodes):
-            _run_episode(problem, cache, values, policy.parameters, rng)
+            _run_episode(problem, cache, values, parameters, rng)
     else:
         values = _GeneralValues(policy)
     a = _start_candidate(problem, values)
@@ -333,7 +343,7 @@ def greedy_walk(problem: CompositionProblem, policy: QPolicy, *, refine_episodes
         actions = problem.actions_from(j, a)
         if not actions:
             return None
-        step = actions[int(np.argmax(_q_values(problem, values, actions, policy.parameters.discount)))]
+        step = actions[int(np.argmax(_q_values(problem, values, actions, parameters.discount)))]
         steps.append(step)
         j, a = step.k, step.a_k
     return steps

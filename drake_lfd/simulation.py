@@ -159,4 +159,5 @@ def trial_summary_line(outcome: TrialOutcome) -> str:
     verdict = "success" if outcome.success else "FAILED: " + "; ".join(outcome.failures[:2])
     composition = outcome.composition_label or "no plan"
     distance = outcome.run.min_shell_distance_m if outcome.run is not None else np.nan
-    return f"trial {outcome.trial} (seed {outcome.seed}): {composition}; min distance {distance * 100:.1f} cm; {verdict}"
+    clearance = f"min distance {distance * 100:.1f} cm" if np.isfinite(distance) else "no obstacles"
+    return f"trial {outcome.trial} (seed {outcome.seed}): {composition}; {clearance}; {verdict}"

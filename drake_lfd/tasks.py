@@ -59,17 +59,28 @@ import dataclasses
 import itertools
 import math
 import re
-import types
-import typing
 from pathlib import Path
 from typing import Union
 
 import numpy as np
-import yaml
-from pydrake.common.yaml import yaml_load_typed
-from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.math import RigidTransform
 
 from drake_lfd.errors import InputError
+
+# The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
+# scripts. angle_from_text and rigid_transform_from_euler_zyx stay importable from here.
+from drake_lfd.yaml_checks import (
+    Scalar,
+    angle,
+    angle_from_text,  # noqa: F401 (re-exported)
+    finite,
+    load_spec,
+    pose,
+    read_text,
+    required,
+    rigid_transform_from_euler_zyx,  # noqa: F401 (re-exported)
+    vector,
+)
 
 # No ``from __future__ import annotations`` here: yaml_load_typed reads the Spec fields'
 # types at run time and needs them as types, not strings.
@@ -80,16 +91,8 @@ PATH_CONSTRAINT_KINDS = ("orientation",)
 
 # ------------------------------------------------------------------ schema (the YAML)
 
-# One number-like token: a YAML number, or a string such as "-pi/2", "90deg", "1e-3".
-Scalar = Union[float, int, str]
 # A coordinate or angle: a number-like token, or a [lower, upper] list of them.
 Entry = Union[list[Scalar], float, int, str]
-
-_DESCRIPTIONS = {Scalar: "a number"}
-
-
-def _required(factory):
-    return dataclasses.field(default_factory=factory, metadata={"required": True})
 
 
 @dataclasses.dataclass
@@ -118,9 +121,9 @@ class CriticalConfigurationSpec:
 class BoxSpec:
     """An axis-aligned box in W: ``centre`` and full edge lengths ``size``, metres."""
 
-    name: str = _required(str)
-    centre: list[float] = _required(list)
-    size: list[float] = _required(list)
+    name: str = required(str)
+    centre: list[float] = required(list)
+    size: list[float] = required(list)
 
 
 @dataclasses.dataclass
@@ -128,9 +131,9 @@ class PathConstraintSpec:
     """A constraint judged on a run between two critical configurations (1-based)."""
 
     kind: str = "orientation"
-    between: list[int] = _required(list)
-    euler_zyx: list[Scalar] = _required(list)
-    tolerance_deg: float = _required(float)
+    between: list[int] = required(list)
+    euler_zyx: list[Scalar] = required(list)
+    tolerance_deg: float = required(float)
 
 
 @dataclasses.dataclass
@@ -143,7 +146,7 @@ class TaskSpec:
     X_tool0_E: PoseSpec = dataclasses.field(default_factory=PoseSpec)
     angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
     variables: dict[str, list[Scalar]] = dataclasses.field(default_factory=dict)
-    critical_configurations: list[CriticalConfigurationSpec] = _required(list)
+    critical_configurations: list[CriticalConfigurationSpec] = required(list)
     obstacles: list[BoxSpec] = dataclasses.field(default_factory=list)
     safety_shells: list[BoxSpec] = dataclasses.field(default_factory=list)
     path_constraints: list[PathConstraintSpec] = dataclasses.field(default_factory=list)
@@ -330,37 +333,6 @@ class ConcreteTask:
 
 # ------------------------------------------------------------------------------ angles
 
-_PI_EXPRESSION = re.compile(
-    r"^([+-]?)\s*(\d+(?:\.\d*)?|\.\d+)?\s*\*?\s*pi\s*(?:/\s*(\d+(?:\.\d*)?|\.\d+))?$"
-)
-_DEGREES = re.compile(r"^([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*deg$")
-
-
-def angle_from_text(text):
-    """Radians of an angle written as text, or None if it is not one.
-
-    Accepts plain numbers (``"1.5"``), multiples of pi (``"pi"``, ``"-pi/2"``,
-    ``"3*pi/4"``, ``"0.5pi"``) and degrees (``"-90deg"``).
-    """
-    text = text.strip()
-    try:
-        return float(text)
-    except ValueError:
-        pass
-    match = _DEGREES.match(text)
-    if match:
-        return math.radians(float(match.group(1)))
-    match = _PI_EXPRESSION.match(text)
-    if match:
-        sign, coefficient, divisor = match.groups()
-        value = math.pi * (float(coefficient) if coefficient else 1.0)
-        if divisor is not None:
-            if float(divisor) == 0.0:
-                return None
-            value /= float(divisor)
-        return -value if sign == "-" else value
-    return None
-
 
 def angle_grid(lower, upper, step_rad):
     """Samples of a bounded angle: ``lower`` to ``upper``, both included, evenly spaced
@@ -398,163 +370,7 @@ def angle_candidates(con):
     return np.array(list(itertools.product(*axes)), dtype=float).reshape(-1, 3)
 
 
-def rigid_transform_from_euler_zyx(p, euler_zyx):
-    """``RigidTransform`` of a position and [yaw, pitch, roll] (``Rz Ry Rx``, SPEC 2)."""
-    yaw, pitch, roll = (float(v) for v in euler_zyx)
-    return RigidTransform(RollPitchYaw(roll, pitch, yaw), np.asarray(p, dtype=float))
-
-
 # ----------------------------------------------------------------------------- loading
-
-
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """SafeLoader that refuses a key written twice in one mapping (PyYAML keeps the
-    last silently) and says where."""
-
-    def construct_mapping(self, node, deep=False):
-        seen = {}
-        for key_node, _ in node.value:
-            if key_node.tag == "tag:yaml.org,2002:merge":
-                continue
-            key = self.construct_object(key_node, deep=deep)
-            try:
-                if key in seen:
-                    raise yaml.constructor.ConstructorError(
-                        None,
-                        None,
-                        f"key {key!r} appears twice in one mapping (first on line {seen[key] + 1})",
-                        key_node.start_mark,
-                    )
-                seen[key] = key_node.start_mark.line
-            except TypeError:
-                pass  # unhashable keys are reported by the schema check
-        return super().construct_mapping(node, deep=deep)
-
-
-def _yaml_error(error, file):
-    mark = getattr(error, "problem_mark", None)
-    problem = getattr(error, "problem", None) or str(error)
-    field = None if mark is None else f"line {mark.line + 1} column {mark.column + 1}"
-    if "could not determine a constructor" in problem:
-        problem = "YAML tags (!Name) are not used in task files"
-    return InputError(f"not valid YAML: {problem}", file=file, field=field)
-
-
-def _describe(schema):
-    if schema in _DESCRIPTIONS:
-        return _DESCRIPTIONS[schema]
-    if schema is float:
-        return "a number"
-    if schema is int:
-        return "an integer"
-    if schema is str:
-        return "a string"
-    origin = typing.get_origin(schema)
-    if origin is list:
-        return "a list"
-    if origin in (Union, types.UnionType):
-        return " or ".join(dict.fromkeys(_describe(alternative) for alternative in typing.get_args(schema)))
-    return "a mapping"
-
-
-def _kind_of(value):
-    if value is None:
-        return "nothing (an empty value)"
-    if isinstance(value, bool):
-        return f"{str(value).lower()} (YAML reads yes/no/on/off/true/false as booleans)"
-    if isinstance(value, dict):
-        return "a mapping"
-    if isinstance(value, list):
-        return "a list"
-    return repr(value)
-
-
-def _matches_scalar(value, schema):
-    if isinstance(value, bool) or value is None:
-        return False
-    if schema is float:
-        if isinstance(value, (int, float)):
-            return True
-        if isinstance(value, str):  # PyYAML reads 1e-3 (no dot) as a string
-            try:
-                float(value)
-            except ValueError:
-                return False
-            return True
-        return False
-    if schema is int:
-        return isinstance(value, int) or (isinstance(value, float) and value.is_integer())
-    if schema is str:
-        return isinstance(value, str)
-    raise TypeError(schema)
-
-
-def _join(path, key):
-    return f"{path}.{key}" if path else str(key)
-
-
-def _check_schema(value, schema, path, file, expected=None):
-    """Checks raw YAML data against a Spec type, so errors name the exact field
-    (``yaml_load_typed`` names only the leaf, and iterates mappings given for lists).
-    ``expected`` words what a union accepts, from the field's metadata."""
-    if schema in (float, int, str):
-        if not _matches_scalar(value, schema):
-            raise InputError(f"expected {_describe(schema)}, got {_kind_of(value)}", file=file, field=path)
-        return
-    origin = typing.get_origin(schema)
-    if origin in (Union, types.UnionType):
-        alternatives = typing.get_args(schema)
-        if isinstance(value, list):
-            for alternative in alternatives:
-                if typing.get_origin(alternative) is list:
-                    _check_schema(value, alternative, path, file)
-                    return
-        elif any(
-            alternative in (float, int, str) and _matches_scalar(value, alternative)
-            for alternative in alternatives
-        ):
-            return
-        raise InputError(f"expected {expected or _describe(schema)}, got {_kind_of(value)}", file=file, field=path)
-    if origin is list:
-        if not isinstance(value, list):
-            raise InputError(f"expected a list, got {_kind_of(value)}", file=file, field=path)
-        (item_schema,) = typing.get_args(schema)
-        for index, item in enumerate(value):
-            _check_schema(item, item_schema, f"{path}[{index}]", file, expected)
-        return
-    if origin is dict:
-        if not isinstance(value, dict):
-            raise InputError(f"expected a mapping, got {_kind_of(value)}", file=file, field=path)
-        _, item_schema = typing.get_args(schema)
-        for key, item in value.items():
-            if not isinstance(key, str):
-                raise InputError(
-                    f"key {_kind_of(key)} is not a name; quote it", file=file, field=path
-                )
-            _check_schema(item, item_schema, _join(path, key), file)
-        return
-    if dataclasses.is_dataclass(schema):
-        if not isinstance(value, dict):
-            raise InputError(f"expected a mapping, got {_kind_of(value)}", file=file, field=path or None)
-        fields = {field.name: field for field in dataclasses.fields(schema)}
-        hints = typing.get_type_hints(schema)
-        for key in value:
-            if not isinstance(key, str):
-                raise InputError(f"key {_kind_of(key)} is not a name; quote it", file=file, field=path or None)
-            if key not in fields:
-                allowed = ", ".join(fields)
-                problem = f"unknown key {key!r} (allowed: {allowed})"
-                if key == "_tag":
-                    problem = "YAML tags (!Name) are not used in task files"
-                raise InputError(problem, file=file, field=_join(path, key))
-        for name, field in fields.items():
-            if name not in value:
-                if field.metadata.get("required"):
-                    raise InputError("missing", file=file, field=_join(path, name))
-                continue
-            _check_schema(value[name], hints[name], _join(path, name), file, field.metadata.get("expected"))
-        return
-    raise TypeError(f"unsupported schema {schema!r}")
 
 
 def load_task_spec(path):
@@ -567,63 +383,12 @@ def load_task_spec(path):
         wrong kind; naming the file and the field.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("no such file", file=path) from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise InputError(f"cannot read: {error}", file=path) from None
-    return task_spec_from_text(text, file=path)
+    return task_spec_from_text(read_text(path), file=path)
 
 
 def task_spec_from_text(text, *, file=None):
     """Like :func:`load_task_spec` for YAML text; ``file`` is named in errors."""
-    try:
-        raw = yaml.load(text, Loader=_UniqueKeyLoader)
-    except yaml.YAMLError as error:
-        raise _yaml_error(error, file) from None
-    if raw is None:
-        raise InputError("the task file is empty", file=file)
-    if not isinstance(raw, dict):
-        raise InputError(f"expected a mapping of task keys, got {_kind_of(raw)}", file=file)
-    # As pydrake's yaml_load: root keys starting with "_" hold anchors, not task data.
-    raw = {key: value for key, value in raw.items() if not (isinstance(key, str) and key.startswith("_"))}
-    _check_schema(raw, TaskSpec, "", file)
-    try:
-        return yaml_load_typed(schema=TaskSpec, data=text)
-    except Exception as error:  # anything left is still the file's fault
-        raise InputError(f"cannot load: {error}", file=file) from None
-
-
-def _finite(value, *, file, field, what="a number"):
-    """A float from a checked scalar (number or numeric string), finite."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"expected {what}, got {_kind_of(value)}", file=file, field=field) from None
-    if not math.isfinite(number):
-        raise InputError(f"{value!r} is not a finite number", file=file, field=field)
-    return number
-
-
-def _angle(value, *, file, field):
-    if isinstance(value, str):
-        number = angle_from_text(value)
-        if number is None:
-            raise InputError(
-                f"{value!r} is not an angle (write radians, a multiple of pi such as -pi/2, "
-                "or degrees such as -90deg)",
-                file=file,
-                field=field,
-            )
-        value = number
-    return _finite(value, file=file, field=field)
-
-
-def _vector(values, count, *, file, field, convert):
-    if len(values) != count:
-        raise InputError(f"expected {count} values, got {len(values)}", file=file, field=field)
-    return np.array([convert(v, file=file, field=f"{field}[{i}]") for i, v in enumerate(values)])
+    return load_spec(text, TaskSpec, file=file, document="the task file", keys="task keys")
 
 
 def _interval(values, *, file, field, convert, context=""):
@@ -638,20 +403,14 @@ def _interval(values, *, file, field, convert, context=""):
     return lower, upper
 
 
-def _pose(spec, *, file, field):
-    p = _vector(spec.p, 3, file=file, field=f"{field}.p", convert=_finite)
-    euler = _vector(spec.euler_zyx, 3, file=file, field=f"{field}.euler_zyx", convert=_angle)
-    return rigid_transform_from_euler_zyx(p, euler)
-
-
 _VARIABLE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
 def _box(spec, *, file, field):
     if not spec.name:
         raise InputError("a box needs a non-empty name", file=file, field=f"{field}.name")
-    centre = _vector(spec.centre, 3, file=file, field=f"{field}.centre", convert=_finite)
-    size = _vector(spec.size, 3, file=file, field=f"{field}.size", convert=_finite)
+    centre = vector(spec.centre, 3, file=file, field=f"{field}.centre", convert=finite)
+    size = vector(spec.size, 3, file=file, field=f"{field}.size", convert=finite)
     for axis in range(3):
         if not size[axis] > 0.0:
             raise InputError(
@@ -670,9 +429,9 @@ def task_from_spec(spec, *, file=None):
         unknown variables, non-positive box sizes, constraint numbers out of range.
     """
     name = spec.name or (Path(file).stem if file is not None else "task")
-    X_WB = _pose(spec.X_WB, file=file, field="X_WB")
-    X_tool0_E = _pose(spec.X_tool0_E, file=file, field="X_tool0_E")
-    grid = _finite(spec.angle_grid_deg, file=file, field="angle_grid_deg")
+    X_WB = pose(spec.X_WB, file=file, field="X_WB")
+    X_tool0_E = pose(spec.X_tool0_E, file=file, field="X_tool0_E")
+    grid = finite(spec.angle_grid_deg, file=file, field="angle_grid_deg")
     if not 0.0 < grid <= 360.0:
         raise InputError(f"must be in (0, 360] degrees, got {grid:g}", file=file, field="angle_grid_deg")
 
@@ -683,7 +442,7 @@ def task_from_spec(spec, *, file=None):
             raise InputError(
                 f"{variable!r} is not a variable name (letters, digits, '_'; not 'pi')", file=file, field=field
             )
-        variables[variable] = _interval(values, file=file, field=field, convert=_finite)
+        variables[variable] = _interval(values, file=file, field=field, convert=finite)
 
     cons = []
     specs = spec.critical_configurations
@@ -709,7 +468,7 @@ def task_from_spec(spec, *, file=None):
             field = f"{base}.p[{axis}]"
             variable = None
             if isinstance(entry, list):
-                lower, upper = _interval(entry, file=file, field=field, convert=_finite, context=context)
+                lower, upper = _interval(entry, file=file, field=field, convert=finite, context=context)
             elif isinstance(entry, str) and _VARIABLE_NAME.match(entry) and entry not in ("nan", "inf"):
                 if entry not in variables:
                     known = ", ".join(variables) or "none"
@@ -719,7 +478,7 @@ def task_from_spec(spec, *, file=None):
                 variable = entry
                 lower, upper = variables[entry]
             else:
-                lower = upper = _finite(entry, file=file, field=field)
+                lower = upper = finite(entry, file=file, field=field)
             p_lower.append(lower)
             p_upper.append(upper)
             p_variables.append(variable)
@@ -727,7 +486,7 @@ def task_from_spec(spec, *, file=None):
         for axis, entry in enumerate(con_spec.euler_zyx):
             field = f"{base}.euler_zyx[{axis}]"
             if isinstance(entry, list):
-                lower, upper = _interval(entry, file=file, field=field, convert=_angle, context=context)
+                lower, upper = _interval(entry, file=file, field=field, convert=angle, context=context)
             else:
                 if isinstance(entry, str) and entry in variables:
                     raise InputError(
@@ -736,7 +495,7 @@ def task_from_spec(spec, *, file=None):
                         file=file,
                         field=field,
                     )
-                lower = upper = _angle(entry, file=file, field=field)
+                lower = upper = angle(entry, file=file, field=field)
             euler_lower.append(lower)
             euler_upper.append(upper)
         cons.append(
@@ -782,8 +541,8 @@ def task_from_spec(spec, *, file=None):
                 file=file,
                 field=f"{base}.between",
             )
-        euler = _vector(constraint.euler_zyx, 3, file=file, field=f"{base}.euler_zyx", convert=_angle)
-        tolerance = _finite(constraint.tolerance_deg, file=file, field=f"{base}.tolerance_deg")
+        euler = vector(constraint.euler_zyx, 3, file=file, field=f"{base}.euler_zyx", convert=angle)
+        tolerance = finite(constraint.tolerance_deg, file=file, field=f"{base}.tolerance_deg")
         if not 0.0 < tolerance <= 180.0:
             raise InputError(
                 f"must be in (0, 180] degrees, got {tolerance:g}", file=file, field=f"{base}.tolerance_deg"
