@@ -85,7 +85,7 @@ def evaluate(problems, policy, label):
                  for i, w in zip(plannable, walks) if w is not None]
         q_cost = np.mean([a for a, _ in pairs]) if pairs else float("nan")
         optimum = np.mean([b for _, b in pairs]) if pairs else float("nan")
-        how = f"after {refine} plan-time episodes (the default)" if refine else "general table alone"
+        how = f"after {refine} plan-time episodes" if refine else "general table alone"
         print(f"    greedy walk, {how}: completes {len(pairs)}/{len(plannable)} "
               f"({100 * len(pairs) / max(len(plannable), 1):.0f}%), mean cost {q_cost:.4f} vs optimum "
               f"{optimum:.4f} (gap {gap_text(q_cost, optimum)})")
@@ -107,7 +107,7 @@ def main():
     start = time.perf_counter()
     result = train_on_random_tasks(features5, num_tasks=20, num_chained_tasks=20, episodes=100, seed=0)
     total = time.perf_counter() - start
-    print(f"training, 20 random + 20 chained tasks x 100 episodes (the default): episodes "
+    print(f"training, 20 random + 20 chained tasks x 100 episodes: episodes "
           f"{result.wall_time_s:.3f} s, including building the tables {total:.3f} s")
 
     task = table8_task()
