@@ -27,6 +27,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--seed", type=int, default=0, metavar="S")
     parser.add_argument("--json", metavar="OUT", help="write the results as JSON")
     parser.add_argument("--html", metavar="REC.html", help="write a Meshcat recording of the first trial")
+    parser.add_argument("--figures", metavar="DIR",
+                        help="write figures of the first trial that ran: SE(3) plan, joints, distance to shells")
     parser.set_defaults(func=run)
 
 
@@ -35,7 +37,7 @@ def run(args) -> int:
     from drake_lfd.library import Library, check_end_effector_frame
     from drake_lfd.library_access import library_features
     from drake_lfd.progress import ProgressBar
-    from drake_lfd.simulation import run_trials, simulate_json, trial_summary_line
+    from drake_lfd.simulation import run_trials, simulate_json, trial_summary_line, write_trial_figures
     from drake_lfd.tasks import load_task
 
     if args.trials < 1:
@@ -45,6 +47,8 @@ def run(args) -> int:
     for option, value in (("--json", args.json), ("--html", args.html)):
         if value and not Path(value).resolve().parent.is_dir():
             raise InputError("folder does not exist", file=str(Path(value).parent), field=option)
+    if args.figures and not Path(args.figures).is_dir():
+        raise InputError("folder does not exist", file=args.figures, field="--figures")
     task = load_task(args.task)
     library = Library.open(args.library)
     check_end_effector_frame(library, task.X_tool0_E, file=args.task)
@@ -62,6 +66,9 @@ def run(args) -> int:
     )
     bar.close()
     document = simulate_json(task, outcomes, wall)
+    first = next((o for o in outcomes if o.run is not None), None)
+    if args.figures and first is not None:
+        write_trial_figures(task, first, Path(args.figures), task.name)
     if args.json:
         atomic_write_json(Path(args.json), document)
     for line in lines:

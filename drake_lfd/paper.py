@@ -30,15 +30,14 @@ import numpy as np
 
 from drake_lfd import __version__
 from drake_lfd.atomic_files import atomic_write_bytes, atomic_write_json
-from drake_lfd.figures import joint_trajectories_figure, plan_figure, training_curve_figure
-from drake_lfd.kinematics import shared_kinematics
+from drake_lfd.figures import training_curve_figure
 from drake_lfd.library import Library
 from drake_lfd.library_access import library_features
 from drake_lfd.plan_json import uncovered_json
 from drake_lfd.planning import build_problem, plan_task
 from drake_lfd.q_learning import episodes_to_steady
 from drake_lfd.rederive import rederive_run
-from drake_lfd.simulation import composition_counts, run_trials
+from drake_lfd.simulation import composition_counts, run_trials, write_trial_figures
 from drake_lfd.table5 import compare as compare_table5
 from drake_lfd.tasks import draw_trial, load_task
 from drake_lfd.training import train_on_random_tasks
@@ -82,19 +81,8 @@ def _task_results(name, task, features, policy, trials, seed, out, log):
         progress=lambda done, total, o: log(f"  {name} trial {done}/{total}: "
                                             f"{'success' if o.success else 'FAILED ' + '; '.join(o.failures[:2])}"),
     )
-    kinematics = shared_kinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
-    figures = {}
     first = next((o for o in outcomes if o.run is not None), None)
-    if first is not None:
-        concrete = first.plan.task
-        figures["plan"] = plan_figure(
-            out / f"{name}_plan.png", first.plan.timed.poses, first.plan.timed.critical_indices,
-            obstacles=concrete.obstacles, safety_shells=concrete.safety_shells,
-            title=f"{name}: SE(3) plan, trial {first.trial}").name
-        lower, upper = kinematics.position_limits()
-        figures["joints"] = joint_trajectories_figure(
-            out / f"{name}_joints.png", first.run.t, first.run.q, lower=lower, upper=upper,
-            velocity_limit=kinematics.velocity_limits(), title=f"{name}: joints, trial {first.trial}").name
+    figures = write_trial_figures(task, first, out, name) if first is not None else {}
     rederived = 0
     for outcome in outcomes:
         if not outcome.success:
@@ -262,7 +250,7 @@ def report_markdown(results: dict, table5_rows, tasks) -> str:
         figures = result.get("figures", {})
         lines.append(f"### {name}")
         lines.append("")
-        for key in ("plan", "joints"):
+        for key in ("plan", "joints", "distance"):
             if key in figures:
                 lines.append(f"![{name} {key}]({figures[key]})")
         if result.get("recording"):

@@ -155,6 +155,41 @@ def composition_counts(outcomes: list[TrialOutcome]) -> dict[str, int]:
     return dict(sorted(counts.items(), key=lambda item: -item[1]))
 
 
+def clearance_over_time(task: Task, run: ClosedLoopResult, stride: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """Least signed distance of the robot to the task's obstacles and shells along a run,
+    re-queried from the logged joints every ``stride`` samples: times (k,), metres (k,)."""
+    from drake_lfd.scene import KinematicScene
+
+    scene = KinematicScene(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, obstacles=task.obstacles,
+                           safety_shells=task.safety_shells)
+    t = run.t[::stride]
+    return t, np.array([scene.signed_distances(q).min() for q in run.q[::stride]])
+
+
+def write_trial_figures(task: Task, outcome: TrialOutcome, out: Path, prefix: str) -> dict[str, str]:
+    """The SE(3) plan with triads, the joint trajectories with limits and, when the task has
+    obstacles or shells, the distance to them over time; returns {kind: file name}."""
+    from drake_lfd.figures import joint_trajectories_figure, plan_figure, shell_distance_figure
+
+    figures = {}
+    concrete = outcome.plan.task
+    figures["plan"] = plan_figure(
+        out / f"{prefix}_plan.png", outcome.plan.timed.poses, outcome.plan.timed.critical_indices,
+        obstacles=concrete.obstacles, safety_shells=concrete.safety_shells,
+        title=f"{prefix}: SE(3) plan, trial {outcome.trial}").name
+    kinematics = shared_kinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+    lower, upper = kinematics.position_limits()
+    figures["joints"] = joint_trajectories_figure(
+        out / f"{prefix}_joints.png", outcome.run.t, outcome.run.q, lower=lower, upper=upper,
+        velocity_limit=kinematics.velocity_limits(), title=f"{prefix}: joints, trial {outcome.trial}").name
+    if task.obstacles or task.safety_shells:
+        t, distance = clearance_over_time(task, outcome.run)
+        figures["distance"] = shell_distance_figure(
+            out / f"{prefix}_distance.png", t, distance,
+            title=f"{prefix}: distance to obstacles and shells, trial {outcome.trial}").name
+    return figures
+
+
 def trial_summary_line(outcome: TrialOutcome) -> str:
     verdict = "success" if outcome.success else "FAILED: " + "; ".join(outcome.failures[:2])
     composition = outcome.composition_label or "no plan"
