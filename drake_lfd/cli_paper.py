@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from drake_lfd.argument_checks import require_at_least, require_seed
 from drake_lfd.errors import InputError
 
 
@@ -28,10 +29,8 @@ def run(args) -> int:
 
     from drake_lfd.paper import run_paper
 
-    if args.trials < 1:
-        raise InputError(f"must be at least 1, got {args.trials}", field="--trials")
-    if args.seed < 0:
-        raise InputError("must be a non-negative integer", field="--seed")
+    require_at_least(args.trials, 1, "--trials")
+    require_seed(args.seed)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder", file=str(out), field="--out")

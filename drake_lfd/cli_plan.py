@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_lfd.argument_checks import require_seed
 from drake_lfd.atomic_files import atomic_write_json
 from drake_lfd.errors import EXIT_DEMONSTRATION_REQUESTED, InputError
 from drake_lfd.planning import PLANNERS
@@ -47,8 +48,7 @@ def run(args) -> int:
     from drake_lfd.planning import plan_task
     from drake_lfd.tasks import draw_trial, load_task
 
-    if args.seed < 0:
-        raise InputError("must be a non-negative integer", field="--seed")
+    require_seed(args.seed)
     task = load_task(args.task)
     library = Library.open(args.library)
     check_end_effector_frame(library, task.X_tool0_E, file=args.task)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from drake_lfd.argument_checks import require_at_least, require_folder_of, require_seed
 from drake_lfd.atomic_files import atomic_write_json
 from drake_lfd.errors import EXIT_DEMONSTRATION_REQUESTED, InputError
 from drake_lfd.planning import PLANNERS
@@ -40,13 +41,10 @@ def run(args) -> int:
     from drake_lfd.simulation import run_trials, simulate_json, trial_summary_line, write_trial_figures
     from drake_lfd.tasks import load_task
 
-    if args.trials < 1:
-        raise InputError(f"must be at least 1, got {args.trials}", field="--trials")
-    if args.seed < 0:
-        raise InputError("must be a non-negative integer", field="--seed")
-    for option, value in (("--json", args.json), ("--html", args.html)):
-        if value and not Path(value).resolve().parent.is_dir():
-            raise InputError("folder does not exist", file=str(Path(value).parent), field=option)
+    require_at_least(args.trials, 1, "--trials")
+    require_seed(args.seed)
+    require_folder_of(args.json, "--json")
+    require_folder_of(args.html, "--html")
     if args.figures and not Path(args.figures).is_dir():
         raise InputError("folder does not exist", file=args.figures, field="--figures")
     task = load_task(args.task)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from drake_lfd.argument_checks import require_at_least, require_folder_of, require_seed
 from drake_lfd.atomic_files import atomic_write_json
 from drake_lfd.errors import InputError
 
@@ -48,17 +49,14 @@ def run(args) -> int:
     from drake_lfd.training import DEFAULT_CHAINED_TASKS
 
     chained = DEFAULT_CHAINED_TASKS if args.chained_tasks is None else args.chained_tasks
-    for field, value, least in (("--random-tasks", args.random_tasks, 0), ("--episodes", args.episodes, 1),
-                                ("--chained-tasks", chained, 0)):
-        if value < least:
-            raise InputError(f"must be at least {least}, got {value}", field=field)
+    require_at_least(args.random_tasks, 0, "--random-tasks")
+    require_at_least(args.episodes, 1, "--episodes")
+    require_at_least(chained, 0, "--chained-tasks")
     if args.random_tasks + chained == 0:
         raise InputError("needs at least one training task", field="--random-tasks")
-    if args.seed < 0:
-        raise InputError("must be a non-negative integer", field="--seed")
+    require_seed(args.seed)
+    require_folder_of(args.out, "--out")
     out = Path(args.out)
-    if not out.parent.resolve().is_dir():
-        raise InputError("folder does not exist", file=str(out.parent), field="--out")
     library = Library.open(args.library)
     if len(library) == 0:
         raise InputError("the library has no demonstrations", file=library.label)

@@ -44,6 +44,7 @@ import numpy as np
 from drake_lfd.atomic_files import atomic_write_bytes
 from drake_lfd.dual_quaternion import dual_quaternion_from_matrices
 from drake_lfd.errors import InputError
+from drake_lfd.read_only_arrays import read_only_array
 
 NUM_JOINTS = 6
 TIMESTAMP_COLUMN = "timestamp"
@@ -55,12 +56,6 @@ RUNTIME_STATE_PLAYING = 2
 MAX_ABS_JOINT_RAD = 2.0 * math.pi + 0.05
 
 _JOINT_COLUMN_PATTERN = re.compile(r"^actual_q_(\d+)$")
-
-
-def _read_only(array):
-    array = np.array(array, dtype=float)
-    array.flags.writeable = False
-    return array
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -85,8 +80,8 @@ class Demonstration:
     description: str = ""
 
     def __post_init__(self):
-        timestamps = _read_only(self.timestamps)
-        joint_positions = _read_only(self.joint_positions)
+        timestamps = read_only_array(self.timestamps)
+        joint_positions = read_only_array(self.joint_positions)
         if timestamps.ndim != 1:
             raise ValueError(f"timestamps must have shape (m,), got {timestamps.shape}")
         if joint_positions.shape != (timestamps.shape[0], NUM_JOINTS):

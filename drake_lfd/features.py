@@ -25,6 +25,7 @@ from drake_lfd.dual_quaternion import (
     translation_from_dual_quaternion,
     twist_from_dual_quaternion,
 )
+from drake_lfd.read_only_arrays import read_only_array
 
 # Samples per resampled demonstration. 100 samples put consecutive samples about 1 % of
 # the motion apart: for a 0.3 m / 90 deg demonstration that is ~3 mm and ~1 deg, far
@@ -134,12 +135,6 @@ def resample_by_arc_length(D, num_samples=DEFAULT_NUM_SAMPLES, rotation_length_m
     return resampled
 
 
-def _read_only(array):
-    array = np.array(array, dtype=float)
-    array.flags.writeable = False
-    return array
-
-
 @dataclasses.dataclass(frozen=True, eq=False)
 class Feature:
     """A feature ``HD = {delta_1 .. delta_(n-1)}`` (Eq. 13) and its parts.
@@ -169,10 +164,10 @@ class Feature:
         """Feature of deltas, shape (n - 1, 8), optionally with their poses (n, 8)."""
         deltas = dual_quaternion_canonical(deltas)
         return cls(
-            rotations=_read_only(deltas[:, :4]),
-            translations=_read_only(translation_from_dual_quaternion(deltas)),
-            deltas=_read_only(deltas),
-            poses=None if poses is None else _read_only(poses),
+            rotations=read_only_array(deltas[:, :4]),
+            translations=read_only_array(translation_from_dual_quaternion(deltas)),
+            deltas=read_only_array(deltas),
+            poses=None if poses is None else read_only_array(poses),
         )
 
     @classmethod

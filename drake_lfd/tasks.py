@@ -81,6 +81,7 @@ from drake_lfd.yaml_checks import (
     rigid_transform_from_euler_zyx,  # noqa: F401 (re-exported)
     vector,
 )
+from drake_lfd.read_only_arrays import read_only_array
 
 # No ``from __future__ import annotations`` here: yaml_load_typed reads the Spec fields'
 # types at run time and needs them as types, not strings.
@@ -155,14 +156,6 @@ class TaskSpec:
 # ------------------------------------------------------------------ checked task types
 
 
-def _read_only(values, shape=None):
-    array = np.array(values, dtype=float)
-    if shape is not None and array.shape != shape:
-        raise ValueError(f"expected shape {shape}, got {array.shape}")
-    array.flags.writeable = False
-    return array
-
-
 @dataclasses.dataclass(frozen=True, eq=False)
 class Box:
     """An axis-aligned box: ``centre`` (3,) and full edge lengths ``size`` (3,), metres."""
@@ -172,8 +165,8 @@ class Box:
     size: np.ndarray
 
     def __post_init__(self):
-        object.__setattr__(self, "centre", _read_only(self.centre, (3,)))
-        object.__setattr__(self, "size", _read_only(self.size, (3,)))
+        object.__setattr__(self, "centre", read_only_array(self.centre, (3,)))
+        object.__setattr__(self, "size", read_only_array(self.size, (3,)))
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -188,7 +181,7 @@ class PathConstraint:
     tolerance_rad: float
 
     def __post_init__(self):
-        object.__setattr__(self, "euler_zyx", _read_only(self.euler_zyx, (3,)))
+        object.__setattr__(self, "euler_zyx", read_only_array(self.euler_zyx, (3,)))
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -213,7 +206,7 @@ class CriticalConfiguration:
 
     def __post_init__(self):
         for name in ("p_lower", "p_upper", "euler_zyx_lower", "euler_zyx_upper"):
-            object.__setattr__(self, name, _read_only(getattr(self, name), (3,)))
+            object.__setattr__(self, name, read_only_array(getattr(self, name), (3,)))
         object.__setattr__(self, "p_variables", tuple(self.p_variables))
 
 
@@ -258,7 +251,7 @@ class ConcreteCriticalConfiguration:
 
     def __post_init__(self):
         for name in ("p", "euler_zyx_lower", "euler_zyx_upper"):
-            object.__setattr__(self, name, _read_only(getattr(self, name), (3,)))
+            object.__setattr__(self, name, read_only_array(getattr(self, name), (3,)))
         if np.any(self.euler_zyx_lower > self.euler_zyx_upper):
             raise ValueError("euler_zyx_lower must be <= euler_zyx_upper")
         if not self.angle_grid_deg > 0.0:

@@ -97,7 +97,13 @@ def test_html_recording_is_written_and_self_contained(tracked, html_path):
 
 @pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (installed by .ci/run)")
 def test_html_recording_shows_the_arm_and_the_obstacle(tracked, html_path, tmp_path):
+    def shows_everything(image):
+        return (fraction_of_hue(image, channel=0) > 0.001 and fraction_of_hue(image, channel=2) > 0.001
+                and fraction_of_purple(image) > 0.005)
+
     image = screenshot(html_path, tmp_path / "run.png")
+    if not shows_everything(image):  # a loaded machine can starve the renderer: once more, longer
+        image = screenshot(html_path, tmp_path / "run_again.png", budget_ms=9000)
     assert fraction_of_hue(image, channel=0) > 0.001  # the red obstacle
     assert fraction_of_hue(image, channel=2) > 0.001  # the UR's blue joint caps
     assert fraction_of_purple(image) > 0.005  # the translucent purple safety shell
