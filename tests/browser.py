@@ -5,7 +5,9 @@ when it is absent. Flags as measured in DRAKE_NOTES.md (a virtual-time budget of
 background networking must be off on this closed network).
 """
 
+import os
 import shutil
+import signal
 import subprocess
 from pathlib import Path
 
@@ -14,19 +16,35 @@ import numpy as np
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 
-def screenshot(html: Path, png: Path, *, budget_ms: int = 4500, size=(800, 600)) -> np.ndarray:
-    """Renders ``html`` headless, writes ``png`` and returns its pixels (h, w, channels)."""
+def screenshot(html: Path, png: Path, *, budget_ms: int = 4500, size=(800, 600),
+               attempts: int = 3, timeout_s: float = 40.0) -> np.ndarray:
+    """Renders ``html`` headless, writes ``png`` and returns its pixels (h, w, channels).
+
+    Headless Chromium occasionally hangs at start-up on this machine (seen twice in a few
+    hundred runs); a hung attempt is killed with its whole process group and retried with
+    a fresh profile.
+    """
     import matplotlib.image
 
-    command = [
-        CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync",
-        "--no-first-run", f"--user-data-dir={png.parent / 'chromium-profile'}",
-        f"--virtual-time-budget={budget_ms}", f"--window-size={size[0]},{size[1]}",
-        f"--screenshot={png}", html.resolve().as_uri(),
-    ]
-    subprocess.run(command, check=True, capture_output=True, timeout=120)
-    return matplotlib.image.imread(png)
+    for attempt in range(attempts):
+        command = [
+            CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
+            "--disable-background-networking", "--disable-component-update", "--disable-sync",
+            "--no-first-run", f"--user-data-dir={png.parent / f'chromium-profile-{attempt}'}",
+            f"--virtual-time-budget={budget_ms}", f"--window-size={size[0]},{size[1]}",
+            f"--screenshot={png}", html.resolve().as_uri(),
+        ]
+        process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                   start_new_session=True)
+        try:
+            process.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+            continue
+        if process.returncode == 0 and png.is_file():
+            return matplotlib.image.imread(png)
+    raise RuntimeError(f"chromium could not render {html} in {attempts} attempts")
 
 
 def fraction_of_hue(image: np.ndarray, channel: int, margin: float = 0.12) -> float:
