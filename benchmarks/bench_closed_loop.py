@@ -37,18 +37,18 @@ import timeit
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from drake_lfd.closed_loop import (
+from drake_lfd.diagrams.closed_loop import (
     DEFAULT_CLOSED_LOOP_TIME_STEP_S,
     build_closed_loop,
     plan_through_joint_configurations,
     run_closed_loop,
 )
-from drake_lfd.differential_ik import pose_error
-from drake_lfd.kinematics import shared_kinematics
-from drake_lfd.shell_monitor import min_signed_distances
-from drake_lfd.station import build_station
-from drake_lfd.tasks import Box
-from drake_lfd.timing import TimedPlan
+from drake_lfd.systems.differential_ik import pose_error
+from drake_lfd.robot.kinematics import shared_kinematics
+from drake_lfd.systems.shell_monitor import min_signed_distances
+from drake_lfd.diagrams.station import build_station
+from drake_lfd.io.task_files import Box
+from drake_lfd.core.timing import TimedPlan
 
 PLAN_DURATION_S = 10.0
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -math.pi / 2, 0.0])

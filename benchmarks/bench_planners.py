@@ -19,20 +19,20 @@ import time
 
 import numpy as np
 
-from drake_lfd.exact_planner import plan_exact
-from drake_lfd.planning import build_problem
-from drake_lfd.q_learning import DEFAULT_REFINE_EPISODES, greedy_walk, plan_q
-from drake_lfd.random_tasks import chained_task, random_training_task
-from drake_lfd.synthetic_library import PAPER5, PAPER6, synthetic_features
-from drake_lfd.tasks import ConcreteCriticalConfiguration, ConcreteTask
-from drake_lfd.training import train_on_random_tasks
+from drake_lfd.planning.exact_planner import plan_exact
+from drake_lfd.planning.planner import build_problem
+from drake_lfd.planning.q_learning import DEFAULT_REFINE_EPISODES, greedy_walk, plan_q
+from drake_lfd.planning.random_tasks import chained_task, random_training_task
+from drake_lfd.core.synthetic_library import PAPER5, PAPER6, synthetic_features
+from drake_lfd.io.task_files import ConcreteCriticalConfiguration, ConcreteTask
+from drake_lfd.planning.training import train_on_random_tasks
 
 
 def load_features(name, six=False):
     if name == "synthetic":
         return synthetic_features(PAPER6 if six else PAPER5)
-    from drake_lfd.library import Library
-    from drake_lfd.library_access import library_features
+    from drake_lfd.io.library import Library
+    from drake_lfd.io.library_access import library_features
 
     if name == "paper5" and six:
         name = "paper6"

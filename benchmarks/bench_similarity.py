@@ -1,7 +1,7 @@
 """Time one similarity test: a task segment (p deltas) against a demonstration feature.
 
 Run: ``python benchmarks/bench_similarity.py [--num-samples 1000] [--p 4]``. Prints the
-median wall time per :func:`drake_lfd.similarity.allocate_features` call. The planners
+median wall time per :func:`drake_lfd.core.similarity.allocate_features` call. The planners
 run this test for every (segment, demonstration) pair, so it should stay well under 1 ms
 for a 1000-sample demonstration and p up to 4.
 """
@@ -13,9 +13,9 @@ import timeit
 
 import numpy as np
 
-from drake_lfd.dual_quaternion import dual_quaternion_from_euler_zyx
-from drake_lfd.features import Feature, task_feature_from_poses
-from drake_lfd.similarity import Tolerances, allocate_features
+from drake_lfd.core.dual_quaternion import dual_quaternion_from_euler_zyx
+from drake_lfd.core.features import Feature, task_feature_from_poses
+from drake_lfd.core.similarity import Tolerances, allocate_features
 
 
 def _demo_poses(num_raw):

@@ -4,7 +4,7 @@
 
 For each guidance script ``sims/demos/<name>.yaml`` (the paper's five demonstrations of
 Fig. 5 and the sixth, ``span``, that the assembling task asks for) this simulates the
-kinesthetic demonstration (``drake_lfd.kinesthetic``, the same as ``drake-lfd record``)
+kinesthetic demonstration (``drake_lfd.diagrams.kinesthetic``, the same as ``drake-lfd record``)
 and writes ``sims/demos/<name>.csv``; then it builds
 
 - ``sims/libraries/paper5/``: screw_cw, screw_ccw, filling, pouring, stacking;
@@ -26,9 +26,9 @@ import sys
 import time
 from pathlib import Path
 
-from drake_lfd.demonstrations import read_rtde_csv, write_rtde_csv
-from drake_lfd.kinesthetic import load_guidance_script, record_demonstration
-from drake_lfd.library import CACHE_DIRECTORY, Library
+from drake_lfd.io.demonstration_logs import read_rtde_csv, write_rtde_csv
+from drake_lfd.diagrams.kinesthetic import load_guidance_script, record_demonstration
+from drake_lfd.io.library import CACHE_DIRECTORY, Library
 
 HERE = Path(__file__).resolve().parent
 DEMOS_DIRECTORY = HERE / "demos"

@@ -5,7 +5,7 @@
 
 import sys
 
-from drake_lfd.table5 import main
+from drake_lfd.experiments.table5 import main
 
 if __name__ == "__main__":
     sys.exit(main())

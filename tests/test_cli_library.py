@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from drake_lfd.cli import main
-from drake_lfd.demonstrations import read_rtde_csv
+from drake_lfd.io.demonstration_logs import read_rtde_csv
 
 Q_HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0])
 HEADER = "timestamp,actual_q_0,actual_q_1,actual_q_2,actual_q_3,actual_q_4,actual_q_5"

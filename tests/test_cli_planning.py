@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 import drake_lfd.cli as cli
-from drake_lfd.demonstrations import Demonstration
-from drake_lfd.kinematics import UR5eKinematics
-from drake_lfd.library import Library
-from drake_lfd.random_tasks import _euler_zyx_of
-from drake_lfd.dual_quaternion import dual_quaternion_from_matrices, pose_from_dual_quaternion
+from drake_lfd.io.demonstration_logs import Demonstration
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.io.library import Library
+from drake_lfd.planning.random_tasks import _euler_zyx_of
+from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices, pose_from_dual_quaternion
 
 Q_HOME = np.array([0.3, -1.3, 1.7, -1.97, -np.pi / 2, 0.2])
 # Joint-space demonstrations: wrist_3 turns the tool about its own z axis (a screw);

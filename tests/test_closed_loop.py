@@ -7,10 +7,10 @@ import re
 import numpy as np
 import pytest
 
-import drake_lfd.closed_loop as mut
-from drake_lfd.kinematics import shared_kinematics
-from drake_lfd.scene import KinematicScene
-from drake_lfd.tasks import Box, PathConstraint
+import drake_lfd.diagrams.closed_loop as mut
+from drake_lfd.robot.kinematics import shared_kinematics
+from drake_lfd.robot.scene import KinematicScene
+from drake_lfd.io.task_files import Box, PathConstraint
 from browser import CHROMIUM, fraction_of_hue, fraction_of_purple, screenshot
 
 pytestmark = pytest.mark.slow

@@ -14,15 +14,15 @@ from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-import drake_lfd.differential_ik as mut_ik
-import drake_lfd.plan_trajectory_source as mut_source
-import drake_lfd.shell_monitor as mut_monitor
-from drake_lfd.closed_loop import plan_through_joint_configurations
-from drake_lfd.initial_ik import UnreachableConfigurationError, solve_initial_configuration
-from drake_lfd.kinematics import UR5eKinematics, add_ur5e, shared_kinematics
-from drake_lfd.scene import KinematicScene, add_scene, table_under_robot
-from drake_lfd.station import build_station
-from drake_lfd.tasks import Box
+import drake_lfd.systems.differential_ik as mut_ik
+import drake_lfd.systems.plan_trajectory_source as mut_source
+import drake_lfd.systems.shell_monitor as mut_monitor
+from drake_lfd.diagrams.closed_loop import plan_through_joint_configurations
+from drake_lfd.robot.initial_ik import UnreachableConfigurationError, solve_initial_configuration
+from drake_lfd.robot.kinematics import UR5eKinematics, add_ur5e, shared_kinematics
+from drake_lfd.robot.scene import KinematicScene, add_scene, table_under_robot
+from drake_lfd.diagrams.station import build_station
+from drake_lfd.io.task_files import Box
 
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -math.pi / 2, 0.0])
 Q_OTHER = Q_HOME + np.array([0.3, 0.1, -0.2, 0.1, 0.2, 0.3])

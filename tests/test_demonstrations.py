@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-import drake_lfd.demonstrations as mut
-from drake_lfd.errors import InputError
-from drake_lfd.kinematics import shared_kinematics
+import drake_lfd.io.demonstration_logs as mut
+from drake_lfd.core.errors import InputError
+from drake_lfd.robot.kinematics import shared_kinematics
 
 Q_HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0])
 
@@ -273,6 +273,6 @@ def test_poses_and_dual_quaternions_by_forward_kinematics():
         np.testing.assert_allclose(X[k], kinematics.X_WE(q[k]).GetAsMatrix4(), atol=1e-15)
     D = mut.dual_quaternions_from_demonstration(demo, kinematics)
     assert D.shape == (4, 8)
-    from drake_lfd.dual_quaternion import matrices_from_dual_quaternion
+    from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
 
     np.testing.assert_allclose(matrices_from_dual_quaternion(D), X, atol=1e-12)

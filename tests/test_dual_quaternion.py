@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from pydrake.common.eigen_geometry import AngleAxis, Quaternion
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-import drake_lfd.dual_quaternion as mut
+import drake_lfd.core.dual_quaternion as mut
 
 TOL = 1e-12
 

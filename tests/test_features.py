@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
-import drake_lfd.features as mut
-from drake_lfd.dual_quaternion import (
+import drake_lfd.core.features as mut
+from drake_lfd.core.dual_quaternion import (
     axis_angle_from_quaternion,
     dual_quaternion_canonical,
     dual_quaternion_from_euler_zyx,
@@ -14,7 +14,7 @@ from drake_lfd.dual_quaternion import (
     dual_quaternion_relative,
     translation_from_dual_quaternion,
 )
-from drake_lfd.similarity import Tolerances, allocate_features
+from drake_lfd.core.similarity import Tolerances, allocate_features
 
 TOL = 1e-12
 

@@ -6,9 +6,9 @@ import pytest
 gymnasium = pytest.importorskip("gymnasium")
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
-import drake_lfd.gym_env as mut  # noqa: E402
-from drake_lfd.exact_planner import plan_exact  # noqa: E402
-from drake_lfd.synthetic_library import PAPER5, synthetic_features  # noqa: E402
+import drake_lfd.planning.gym_env as mut  # noqa: E402
+from drake_lfd.planning.exact_planner import plan_exact  # noqa: E402
+from drake_lfd.core.synthetic_library import PAPER5, synthetic_features  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
-import drake_lfd.kinematics as mut
+import drake_lfd.robot.kinematics as mut
 
 # UR5e DH table, written here independently of the model file.
 DH_D = [0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996]
@@ -80,7 +80,7 @@ def test_joint_names_and_actuators(dut):
 def test_model_loads_without_network(offline_env, tmp_path):
     script = (
         "import numpy as np\n"
-        "from drake_lfd.kinematics import UR5eKinematics\n"
+        "from drake_lfd.robot.kinematics import UR5eKinematics\n"
         "k = UR5eKinematics()\n"
         "print(k.X_Wtool0(np.zeros(6)).translation()[0])\n"
     )

@@ -12,22 +12,22 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.math import SpatialVelocity
 
-import drake_lfd.table5 as table5
-from drake_lfd.tasks import load_task
+import drake_lfd.experiments.table5 as table5
+from drake_lfd.io.task_files import load_task
 from pydrake.systems.analysis import Simulator
 
-import drake_lfd.kinesthetic as mut
-from drake_lfd.demo_recorder import DemoRecorder
-from drake_lfd.demonstrations import dual_quaternions_from_demonstration, read_rtde_csv
-from drake_lfd.dual_quaternion import (
+import drake_lfd.diagrams.kinesthetic as mut
+from drake_lfd.systems.demo_recorder import DemoRecorder
+from drake_lfd.io.demonstration_logs import dual_quaternions_from_demonstration, read_rtde_csv
+from drake_lfd.core.dual_quaternion import (
     axis_angle_from_quaternion,
     dual_quaternion_from_rigid_transform,
     dual_quaternion_relative,
 )
-from drake_lfd.errors import InputError
-from drake_lfd.features import Feature
-from drake_lfd.kinematics import UR5eKinematics
-from drake_lfd.library import Library
+from drake_lfd.core.errors import InputError
+from drake_lfd.core.features import Feature
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.io.library import Library
 
 REPOSITORY = Path(__file__).resolve().parent.parent
 SIMS = REPOSITORY / "sims"
@@ -95,7 +95,7 @@ def test_bad_scripts_name_the_field(edit, field, words):
 def _poses_close(D_a, D_b, position_tol, angle_tol):
     relative = dual_quaternion_relative(np.atleast_2d(D_a), np.atleast_2d(D_b))
     _, angle = axis_angle_from_quaternion(relative[:, :4])
-    from drake_lfd.dual_quaternion import translation_from_dual_quaternion
+    from drake_lfd.core.dual_quaternion import translation_from_dual_quaternion
 
     return (
         np.all(np.linalg.norm(translation_from_dual_quaternion(relative), axis=-1) <= position_tol)
@@ -226,7 +226,7 @@ def test_demo_recorder_alone_samples_at_the_rtde_rate(tmp_path):
 
 def _record(args, env, cwd):
     return subprocess.run(
-        [sys.executable, "-m", "drake_lfd.cli", "record", *args],
+        [sys.executable, "-m", "drake_lfd", "record", *args],
         capture_output=True,
         text=True,
         env=env,

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
-import drake_lfd.library as mut
-from drake_lfd.demonstrations import Demonstration, dual_quaternions_from_demonstration
-from drake_lfd.errors import InputError
-from drake_lfd.features import Feature
-from drake_lfd.kinematics import UR5eKinematics
-from drake_lfd.pose_records import pose_json_from_rigid_transform, rigid_transform_from_pose_json
+import drake_lfd.io.library as mut
+from drake_lfd.io.demonstration_logs import Demonstration, dual_quaternions_from_demonstration
+from drake_lfd.core.errors import InputError
+from drake_lfd.core.features import Feature
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.io.pose_records import pose_json_from_rigid_transform, rigid_transform_from_pose_json
 
 Q_HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0])
 X_TOOL0_E = RigidTransform(RollPitchYaw(0.1, -0.2, 0.3), [0.01, -0.02, 0.15])
@@ -106,7 +106,7 @@ def test_changed_log_invalidates_cache(library, tmp_path):
     root = tmp_path / "lib"
     before = np.array(mut.Library.open(root).feature("pour").deltas)
     other = make_demo(7)
-    from drake_lfd.demonstrations import write_rtde_csv
+    from drake_lfd.io.demonstration_logs import write_rtde_csv
 
     write_rtde_csv(other, root / "demos" / "pour.csv")  # same sample count, other motion
     after = mut.Library.open(root).feature("pour").deltas

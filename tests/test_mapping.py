@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-import drake_lfd.mapping as mut
-from drake_lfd.dual_quaternion import (
+import drake_lfd.core.mapping as mut
+from drake_lfd.core.dual_quaternion import (
     axis_angle_from_quaternion,
     dual_quaternion_canonical,
     dual_quaternion_from_euler_zyx,
@@ -15,8 +15,8 @@ from drake_lfd.dual_quaternion import (
     translation_from_dual_quaternion,
     vector_rotated_by_quaternion,
 )
-from drake_lfd.features import Feature, task_feature_from_poses
-from drake_lfd.similarity import Allocation, Tolerances, allocate_features
+from drake_lfd.core.features import Feature, task_feature_from_poses
+from drake_lfd.core.similarity import Allocation, Tolerances, allocate_features
 
 TOL = 1e-12
 IDENTITY_Q = [1.0, 0.0, 0.0, 0.0]

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import drake_lfd.cli as cli
-import drake_lfd.rederive as rederive
-from drake_lfd.kinematics import UR5eKinematics
-from drake_lfd.paper import scenarios_directory
+import drake_lfd.experiments.rederive as rederive
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.core.resources import scenarios_directory
 
 
 def test_dh_kinematics_of_the_rederivation_matches_the_model(rng):
@@ -52,8 +52,8 @@ def test_simulate_json_is_re_derivable_from_q(tmp_path):
     assert document["trials_requested"] == 1 and document["success_count"] == 1
     (trial,) = document["trials"]
     assert len(trial["t"]) == len(trial["q"]) and np.all(np.diff(trial["t"]) <= 0.0100001)
-    from drake_lfd.pose_records import rigid_transform_from_pose_json
-    from drake_lfd.tasks import draw_trial, load_task
+    from drake_lfd.io.pose_records import rigid_transform_from_pose_json
+    from drake_lfd.io.task_files import draw_trial, load_task
 
     task = load_task(scenario)
     check = rederive.rederive_run(

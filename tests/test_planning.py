@@ -5,9 +5,9 @@ import itertools
 import numpy as np
 import pytest
 
-import drake_lfd.planning as mut
-from drake_lfd.composition import CompositionProblem
-from drake_lfd.dual_quaternion import (
+import drake_lfd.planning.planner as mut
+from drake_lfd.planning.composition import CompositionProblem
+from drake_lfd.core.dual_quaternion import (
     dual_quaternion_from_euler_zyx,
     dual_quaternion_from_pose,
     dual_quaternion_multiply,
@@ -17,12 +17,12 @@ from drake_lfd.dual_quaternion import (
     rotation_from_dual_quaternion,
     translation_from_dual_quaternion,
 )
-from drake_lfd.exact_planner import plan_exact
-from drake_lfd.q_learning import QPolicy, greedy_walk, plan_q
-from drake_lfd.random_tasks import _euler_zyx_of, chained_task, random_training_task
-from drake_lfd.similarity import rotation_distance
-from drake_lfd.synthetic_library import PAPER5, PAPER6, synthetic_features
-from drake_lfd.tasks import ConcreteCriticalConfiguration, ConcreteTask
+from drake_lfd.planning.exact_planner import plan_exact
+from drake_lfd.planning.q_learning import QPolicy, greedy_walk, plan_q
+from drake_lfd.planning.random_tasks import _euler_zyx_of, chained_task, random_training_task
+from drake_lfd.core.similarity import rotation_distance
+from drake_lfd.core.synthetic_library import PAPER5, PAPER6, synthetic_features
+from drake_lfd.io.task_files import ConcreteCriticalConfiguration, ConcreteTask
 
 
 @pytest.fixture(scope="module")
@@ -166,7 +166,7 @@ def test_batched_legal_costs_equal_single_allocations(paper5):
     assert problem.cost
     for (j, k, d), matrix in problem.cost.items():
         for a_j, a_k in zip(*np.nonzero(np.isfinite(matrix))):
-            from drake_lfd.composition import Step
+            from drake_lfd.planning.composition import Step
             span = problem.span_allocation(Step(d, j, k, a_j, a_k, matrix[a_j, a_k]))
             assert span.allocation.cost == pytest.approx(matrix[a_j, a_k], abs=1e-6)
 

@@ -5,13 +5,13 @@ import json
 import numpy as np
 import pytest
 
-import drake_lfd.q_learning as mut
-from drake_lfd.errors import InputError
-from drake_lfd.exact_planner import plan_exact
-from drake_lfd.planning import build_problem
-from drake_lfd.random_tasks import chained_task
-from drake_lfd.synthetic_library import PAPER5, PAPER6, synthetic_features
-from drake_lfd.training import train_on_random_tasks
+import drake_lfd.planning.q_learning as mut
+from drake_lfd.core.errors import InputError
+from drake_lfd.planning.exact_planner import plan_exact
+from drake_lfd.planning.planner import build_problem
+from drake_lfd.planning.random_tasks import chained_task
+from drake_lfd.core.synthetic_library import PAPER5, PAPER6, synthetic_features
+from drake_lfd.planning.training import train_on_random_tasks
 
 
 @pytest.fixture(scope="module")

@@ -5,16 +5,16 @@ import itertools
 import numpy as np
 import pytest
 
-import drake_lfd.similarity as mut
-from drake_lfd.synthetic_library import PAPER5, synthetic_features
-from drake_lfd.dual_quaternion import (
+import drake_lfd.core.similarity as mut
+from drake_lfd.core.synthetic_library import PAPER5, synthetic_features
+from drake_lfd.core.dual_quaternion import (
     dual_quaternion_from_euler_zyx,
     dual_quaternion_from_pose,
     dual_quaternion_multiply,
     quaternion_from_axis_angle,
     quaternion_multiply,
 )
-from drake_lfd.features import Feature, task_feature_from_poses
+from drake_lfd.core.features import Feature, task_feature_from_poses
 
 X_AXIS, Y_AXIS, Z_AXIS = np.eye(3)
 

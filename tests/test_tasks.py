@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-import drake_lfd.tasks as mut
-from drake_lfd.errors import InputError
+import drake_lfd.io.task_files as mut
+from drake_lfd.core.errors import InputError
 
 DATA = Path(__file__).parent / "data"
 PI = math.pi

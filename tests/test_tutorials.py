@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drake_lfd.library import Library
+from drake_lfd.io.library import Library
 
 TUTORIALS = Path(__file__).resolve().parent.parent / "tutorials"
 

@@ -33,15 +33,15 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_lfd.figures import joint_trajectories_figure, plan_figure
-from drake_lfd.kinematics import shared_kinematics
-from drake_lfd.library import Library, check_end_effector_frame
-from drake_lfd.library_access import library_features
-from drake_lfd.paper import scenarios_directory
-from drake_lfd.planning import plan_task
-from drake_lfd.scene import table_under_robot
-from drake_lfd.simulation import composition_counts, run_trials, simulate_json, trial_summary_line
-from drake_lfd.tasks import draw_trial, load_task
+from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure
+from drake_lfd.robot.kinematics import shared_kinematics
+from drake_lfd.io.library import Library, check_end_effector_frame
+from drake_lfd.io.library_access import library_features
+from drake_lfd.core.resources import scenarios_directory
+from drake_lfd.planning.planner import plan_task
+from drake_lfd.robot.scene import table_under_robot
+from drake_lfd.experiments.simulation import composition_counts, run_trials, simulate_json, trial_summary_line
+from drake_lfd.io.task_files import draw_trial, load_task
 
 NAME = "01_transferring"
 

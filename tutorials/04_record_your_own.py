@@ -38,19 +38,19 @@ import numpy as np
 from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from drake_lfd.demonstrations import read_rtde_csv, write_rtde_csv
-from drake_lfd.figures import joint_trajectories_figure, plan_figure
-from drake_lfd.kinematics import shared_kinematics
-from drake_lfd.kinesthetic import load_guidance_script, record_demonstration
-from drake_lfd.library import MANIFEST_NAME, Library, check_end_effector_frame
-from drake_lfd.library_access import library_features
-from drake_lfd.model_preview import write_configurations_html
-from drake_lfd.paper import scenarios_directory
-from drake_lfd.plan_json import describe_uncovered
-from drake_lfd.planning import plan_task
-from drake_lfd.scene import table_under_robot
-from drake_lfd.simulation import run_trials, trial_summary_line
-from drake_lfd.tasks import draw_trial, load_task, rigid_transform_from_euler_zyx
+from drake_lfd.io.demonstration_logs import read_rtde_csv, write_rtde_csv
+from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure
+from drake_lfd.robot.kinematics import shared_kinematics
+from drake_lfd.diagrams.kinesthetic import load_guidance_script, record_demonstration
+from drake_lfd.io.library import MANIFEST_NAME, Library, check_end_effector_frame
+from drake_lfd.io.library_access import library_features
+from drake_lfd.diagrams.model_preview import write_configurations_html
+from drake_lfd.core.resources import scenarios_directory
+from drake_lfd.io.plan_json import describe_uncovered
+from drake_lfd.planning.planner import plan_task
+from drake_lfd.robot.scene import table_under_robot
+from drake_lfd.experiments.simulation import run_trials, trial_summary_line
+from drake_lfd.io.task_files import draw_trial, load_task, rigid_transform_from_euler_zyx
 
 NAME = "04_record_your_own"
 DEMO_NAME = "roll_carry"

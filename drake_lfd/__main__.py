@@ -1,0 +1,7 @@
+"""``python -m drake_lfd``: the same as the ``drake-lfd`` command."""
+
+import sys
+
+from drake_lfd.cli import main
+
+sys.exit(main())

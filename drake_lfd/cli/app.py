@@ -1,0 +1,69 @@
+"""The ``drake-lfd`` command line: a thin argparse front end over the library.
+
+Each command lives in its own module exposing ``add_parser(subparsers)``, which
+registers a subparser whose ``func(args) -> int`` does the work. This module only wires
+them together and turns errors into the exit codes of INTERFACES.md: 2 for bad input
+(one line on stderr, no traceback), 3 for a demonstration request, 1 for anything else.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from drake_lfd import __version__
+from drake_lfd.core.errors import EXIT_BAD_INPUT, EXIT_FAILURE, InputError
+
+# Modules that each add one subcommand, in the order --help lists them. A module that
+# is missing (a later issue not yet shipped) is simply skipped.
+_COMMAND_MODULES = (
+    "drake_lfd.cli.record",
+    "drake_lfd.cli.library",
+    "drake_lfd.cli.train",
+    "drake_lfd.cli.plan",
+    "drake_lfd.cli.simulate",
+    "drake_lfd.cli.paper",
+    "drake_lfd.cli.show_model",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="drake-lfd",
+        description=(
+            "Plan UR5e motions for new tasks by composing kinesthetic demonstrations "
+            "(Yu & Chang), simulated closed loop in Drake."
+        ),
+    )
+    parser.add_argument("--version", action="version", version=f"drake-lfd {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for module_name in _COMMAND_MODULES:
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as error:
+            if error.name == module_name:
+                continue
+            raise
+        module.add_parser(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    try:
+        return int(args.func(args) or 0)
+    except InputError as error:
+        print(f"drake-lfd {args.command}: error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"drake-lfd {args.command}: interrupted", file=sys.stderr)
+        return EXIT_FAILURE
+
+
+if __name__ == "__main__":
+    sys.exit(main())

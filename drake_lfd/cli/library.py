@@ -1,0 +1,285 @@
+"""``drake-lfd library add|show|remove``: manage a demonstration library from the shell.
+
+A thin front end over :mod:`drake_lfd.io.library` (INTERFACES.md):
+
+- ``library add LIB DEMO.csv --name NAME [--description TEXT]`` reads a UR RTDE joint
+  log (or the project's own CSV) and adds it. If ``LIB`` does not exist (or is an empty
+  directory) and is not a bundled library's name, a new library is created there, with
+  ``X_tool0_E`` the identity unless ``--tool0-E-p X Y Z`` and/or
+  ``--tool0-E-euler-zyx YAW PITCH ROLL`` (radians; ``pi/2`` or ``90deg`` forms accepted)
+  say otherwise. For an existing library these options must match its frame (they can
+  never change it: that would silently invalidate every feature). ``--keep-all-rows``
+  skips the ``runtime_state`` filter. Warnings about the log (a cut-off last line that
+  was dropped) go to stderr after a successful add; a refused add prints one error line
+  and leaves the library exactly as it was.
+- ``library show LIB [--json OUT]`` prints a table: per demonstration its samples,
+  duration and the rotation of its feature at the start, middle and three quarters of
+  the way (``delta`` at 0, 50 and 75 % of the resampled motion, like the paper's Table
+  5), as a quaternion (w, x, y, z) and as axis-angle, with the direction of the delta's
+  translation (in the frame of that sample). ``--json OUT`` also writes the
+  machine-readable listing (``-`` writes it to stdout instead of the table).
+- ``library remove LIB NAME`` removes one demonstration.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from drake_lfd.io.demonstration_logs import read_rtde_csv
+from drake_lfd.core.dual_quaternion import axis_angle_from_quaternion
+from drake_lfd.core.errors import EXIT_OK, InputError
+from drake_lfd.io.library import (
+    END_EFFECTOR_FRAME_TOLERANCE,
+    MANIFEST_NAME,
+    Library,
+    bundled_library_names,
+    check_demo_name,
+)
+from drake_lfd.io.pose_records import pose_json_from_rigid_transform
+from drake_lfd.io.task_files import angle_from_text, rigid_transform_from_euler_zyx
+
+# Where along the feature ``show`` samples its rotation (fractions of the deltas).
+SUMMARY_FRACTIONS = (("start", 0.0), ("middle", 0.5), ("late", 0.75))
+
+
+def add_parser(subparsers):
+    parser = subparsers.add_parser(
+        "library",
+        help="add, list or remove demonstrations of a library directory",
+        description="Manage a demonstration library (a directory with library.json, demos/, cache/).",
+    )
+    actions = parser.add_subparsers(dest="library_command", metavar="ACTION", required=True)
+
+    add = actions.add_parser(
+        "add",
+        help="add a demonstration (RTDE joint log) to a library",
+        description=(
+            "Add a demonstration to LIB. LIB is created when it does not exist; its end-effector "
+            "frame X_tool0_E is then the identity unless --tool0-E-p / --tool0-E-euler-zyx are given."
+        ),
+    )
+    add.add_argument("library", metavar="LIB", help="library directory (created if missing)")
+    add.add_argument("log", metavar="DEMO.csv", help="UR RTDE joint log (timestamp, actual_q_0..5)")
+    add.add_argument("--name", required=True, help="demonstration name: letters, digits, '_', '-'")
+    add.add_argument("--description", default="", help="what was demonstrated")
+    add.add_argument(
+        "--tool0-E-p",
+        nargs=3,
+        type=float,
+        metavar=("X", "Y", "Z"),
+        help="position of E in tool0 (m) for a new library; default 0 0 0",
+    )
+    add.add_argument(
+        "--tool0-E-euler-zyx",
+        nargs=3,
+        metavar=("YAW", "PITCH", "ROLL"),
+        help="orientation of E in tool0, R = Rz Ry Rx (rad; pi/2 or 90deg accepted) for a new library",
+    )
+    add.add_argument(
+        "--keep-all-rows",
+        action="store_true",
+        help="keep every row of the log (default: only rows with runtime_state 2, PLAYING, if that column exists)",
+    )
+    add.set_defaults(func=run_add)
+
+    show = actions.add_parser("show", help="list the demonstrations and their features")
+    show.add_argument("library", metavar="LIB", help="library directory or bundled library name")
+    show.add_argument("--json", metavar="OUT", help="also write the listing as JSON to OUT ('-': stdout)")
+    show.set_defaults(func=run_show)
+
+    remove = actions.add_parser("remove", help="remove one demonstration")
+    remove.add_argument("library", metavar="LIB", help="library directory")
+    remove.add_argument("name", metavar="NAME", help="the demonstration to remove")
+    remove.set_defaults(func=run_remove)
+    return parser
+
+
+# --------------------------------------------------------------------------------- add
+
+
+def _requested_tool_frame(args):
+    """X_tool0_E from the options, or None if neither was given."""
+    if args.tool0_E_p is None and args.tool0_E_euler_zyx is None:
+        return None
+    p = [0.0, 0.0, 0.0] if args.tool0_E_p is None else args.tool0_E_p
+    euler = [0.0, 0.0, 0.0]
+    if args.tool0_E_euler_zyx is not None:
+        for index, text in enumerate(args.tool0_E_euler_zyx):
+            value = angle_from_text(text)
+            if value is None or not math.isfinite(value):
+                raise InputError(f"{text!r} is not an angle", field=f"--tool0-E-euler-zyx[{index}]")
+            euler[index] = value
+    if not all(math.isfinite(v) for v in p):
+        raise InputError(f"{p} is not a finite position", field="--tool0-E-p")
+    return rigid_transform_from_euler_zyx(p, euler)
+
+
+def _is_new_library(path_text):
+    path = Path(path_text)
+    if path.is_dir():
+        return not (path / MANIFEST_NAME).exists() and not any(path.iterdir())
+    return not path.exists() and path_text not in bundled_library_names()
+
+
+def run_add(args):
+    requested = _requested_tool_frame(args)
+    # Everything that can refuse the add runs before the library is touched.
+    check_demo_name(args.name)
+    demonstration, warnings = read_rtde_csv(
+        args.log, name=args.name, description=args.description, filter_runtime_state=not args.keep_all_rows
+    )
+    if _is_new_library(args.library):
+        library = Library.create(args.library, X_tool0_E=requested)
+    else:
+        library = Library.open(args.library)
+        if requested is not None:
+            difference = np.max(np.abs(requested.GetAsMatrix4() - library.X_tool0_E.GetAsMatrix4()))
+            if difference > END_EFFECTOR_FRAME_TOLERANCE:
+                pose = pose_json_from_rigid_transform(library.X_tool0_E)
+                raise InputError(
+                    f"the library's end-effector frame is p={pose['p']}, q_wxyz={pose['q_wxyz']}; "
+                    "--tool0-E-p/--tool0-E-euler-zyx only choose it for a new library",
+                    file=library.label,
+                    field="X_tool0_E",
+                )
+    entry = library.add(demonstration, args.name, args.description)
+    for warning in warnings:
+        print(f"drake-lfd library: warning: {warning}", file=sys.stderr)
+    print(
+        f"added {entry.name!r} to {library.label}: {entry.samples} samples, "
+        f"{entry.duration_s:.3f} s"
+    )
+    return EXIT_OK
+
+
+# -------------------------------------------------------------------------------- show
+
+
+def feature_summary(feature):
+    """Rotation (and translation direction) of a feature at a few points, as in Table 5.
+
+    Parameters
+    ----------
+    feature : Feature
+        With n - 1 deltas.
+
+    Returns
+    -------
+    rows : list of dict
+        One per :data:`SUMMARY_FRACTIONS`: ``label``, ``delta`` (1-based index),
+        ``q_wxyz``, ``axis``, ``angle_rad``, ``translation_m`` (in the frame of that
+        sample).
+    """
+    count = len(feature)
+    rows = []
+    for label, fraction in SUMMARY_FRACTIONS:
+        index = int(round(fraction * (count - 1)))
+        q = np.asarray(feature.rotations[index], dtype=float)
+        axis, angle = axis_angle_from_quaternion(q)
+        rows.append(
+            {
+                "label": label,
+                "delta": index + 1,
+                "q_wxyz": [float(v) for v in q],
+                "axis": [float(v) for v in axis],
+                "angle_rad": float(angle),
+                "translation_m": [float(v) for v in feature.translations[index]],
+            }
+        )
+    return rows
+
+
+def library_listing(library):
+    """The ``library show --json`` document (INTERFACES.md), plus optional fields:
+    ``read_only``, and per demonstration ``added`` and ``feature`` (resampled sample
+    count and :func:`feature_summary`)."""
+    demos = []
+    for entry in library.entries:
+        feature = library.feature(entry.name)
+        demos.append(
+            {
+                "name": entry.name,
+                "path": str(library.log_path(entry.name)),
+                "samples": entry.samples,
+                "duration_s": entry.duration_s,
+                "description": entry.description,
+                "added": entry.added,
+                "feature": {"samples": len(feature) + 1, "summary": feature_summary(feature)},
+            }
+        )
+    return {
+        "library": library.label,
+        "X_tool0_E": pose_json_from_rigid_transform(library.X_tool0_E),
+        "read_only": library.read_only,
+        "demos": demos,
+    }
+
+
+def _format_vector(values, digits=3):
+    return "(" + ", ".join(f"{v:+.{digits}f}" for v in values) + ")"
+
+
+def format_listing(listing):
+    """The human-readable table of a :func:`library_listing`, as one string."""
+    pose = listing["X_tool0_E"]
+    lines = [
+        f"library {listing['library']}" + ("  (bundled, read-only)" if listing["read_only"] else ""),
+        f"X_tool0_E: p = {_format_vector(pose['p'])} m, q_wxyz = {_format_vector(pose['q_wxyz'])}",
+    ]
+    if not listing["demos"]:
+        lines.append("no demonstrations yet")
+        return "\n".join(lines)
+    width = max(4, *(len(demo["name"]) for demo in listing["demos"]))
+    lines.append(
+        f"{'name':<{width}}  {'samples':>7}  {'duration_s':>10}  {'delta':<12}  "
+        f"{'rotation q_wxyz':<34}  {'axis-angle':<34}   translation direction"
+    )
+    for demo in listing["demos"]:
+        for row_index, row in enumerate(demo["feature"]["summary"]):
+            if row_index == 0:
+                head = f"{demo['name']:<{width}}  {demo['samples']:>7}  {demo['duration_s']:>10.3f}"
+            else:
+                head = " " * (width + 2 + 7 + 2 + 10)
+            delta = f"{row['label']} ({row['delta']})"
+            translation = np.asarray(row["translation_m"])
+            length = float(np.linalg.norm(translation))
+            direction = _format_vector(translation / length, 2) if length >= 1e-3 else "(none, < 1 mm)"
+            lines.append(
+                f"{head}  {delta:<12}  {_format_vector(row['q_wxyz']):<34}  "
+                f"{math.degrees(row['angle_rad']):6.1f} deg about {_format_vector(row['axis'], 2)}"
+                f"   {direction}"
+            )
+        if demo["description"]:
+            lines.append(" " * (width + 2) + demo["description"])
+    return "\n".join(lines)
+
+
+def run_show(args):
+    library = Library.open(args.library)
+    listing = library_listing(library)
+    if args.json == "-":
+        print(json.dumps(listing, indent=2))
+        return EXIT_OK
+    if args.json:
+        try:
+            Path(args.json).write_text(json.dumps(listing, indent=2) + "\n", encoding="utf-8")
+        except OSError as error:
+            raise InputError(f"cannot write: {error.strerror}", file=args.json) from None
+    print(format_listing(listing))
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------ remove
+
+
+def run_remove(args):
+    library = Library.open(args.library)
+    library.remove(args.name)
+    print(f"removed {args.name!r} from {library.label}")
+    return EXIT_OK
+

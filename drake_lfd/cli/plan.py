@@ -1,0 +1,72 @@
+"""``drake-lfd plan``: one SE(3) motion plan for a task, or a demonstration request."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from drake_lfd.cli.argument_checks import require_seed
+from drake_lfd.io.atomic_files import atomic_write_json
+from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, InputError
+from drake_lfd.planning.planner import PLANNERS
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "plan",
+        help="plan one SE(3) motion for a task, or request a demonstration",
+        description=(
+            "Plan one concrete trial of TASK.yaml with the library's demonstrations. "
+            "Exit 3 with the uncovered segments when the library cannot cover the task."
+        ),
+    )
+    parser.add_argument("task", metavar="TASK.yaml")
+    parser.add_argument("--library", required=True, metavar="LIB", help="library directory or bundled name")
+    parser.add_argument("--planner", choices=PLANNERS, default="exact")
+    parser.add_argument("--policy", metavar="POLICY", help="Q-policy file (needed by --planner q)")
+    parser.add_argument("--seed", type=int, default=0, help="draws the trial's ranged positions")
+    parser.add_argument("--json", metavar="OUT", help="write the plan as JSON")
+    parser.set_defaults(func=run)
+
+
+def load_policy_for(args):
+    """The Q-policy named by ``--policy`` (None for the exact planner)."""
+    from drake_lfd.planning.q_learning import QPolicy
+
+    if args.planner != "q":
+        return None
+    if not args.policy:
+        raise InputError("--planner q needs --policy POLICY (train one with drake-lfd train)", field="--policy")
+    return QPolicy.load(args.policy)
+
+
+def run(args) -> int:
+    from drake_lfd.io.library import Library, check_end_effector_frame
+    from drake_lfd.io.library_access import library_features
+    from drake_lfd.io.plan_json import describe_uncovered, plan_json
+    from drake_lfd.planning.planner import plan_task
+    from drake_lfd.io.task_files import draw_trial, load_task
+
+    require_seed(args.seed)
+    task = load_task(args.task)
+    library = Library.open(args.library)
+    check_end_effector_frame(library, task.X_tool0_E, file=args.task)
+    policy = load_policy_for(args)
+    trial = draw_trial(task, args.seed)
+    result = plan_task(trial, library_features(library), planner=args.planner, policy=policy, seed=args.seed)
+    if args.json:
+        atomic_write_json(Path(args.json), plan_json(result))
+    if result.planned:
+        chain = " + ".join(f"{s.demo} (con_{s.con_from}->con_{s.con_to})" for s in result.composition)
+        print(f"{task.name}: planned with {chain}; total cost {result.total_cost:.3f}, "
+              f"{len(result.timed.times)} poses over {result.timed.duration:.1f} s, "
+              f"largest correction {result.max_correction_position_m * 1e3:.1f} mm / "
+              f"{np.degrees(result.max_correction_rotation_rad):.1f} deg")
+        if result.fallback:
+            print(f"note: the greedy Q-walk dead-ended; the {result.fallback} planner completed the plan")
+        return 0
+    print(f"{task.name}: library {library.label} cannot cover the task; please demonstrate:")
+    for line in describe_uncovered(result):
+        print("  " + line)
+    return EXIT_DEMONSTRATION_REQUESTED

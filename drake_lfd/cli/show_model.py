@@ -1,0 +1,37 @@
+"""``drake-lfd show-model``: write a Meshcat HTML animation of the shipped UR5e."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from drake_lfd.core.errors import InputError
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "show-model",
+        help="write a standalone Meshcat HTML of the UR5e moving through configurations",
+        description="Write a self-contained Meshcat HTML animation of drake-lfd's UR5e model.",
+    )
+    parser.add_argument("--out", default="ur5e.html", help="output HTML file (default ur5e.html)")
+    parser.add_argument(
+        "--q", nargs=6, type=float, action="append", metavar="Q",
+        help="a joint configuration in radians (repeat for keyframes); default: a showcase",
+    )
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from drake_lfd.diagrams.model_preview import SHOWCASE_CONFIGURATIONS, write_configurations_html
+
+    q_keyframes = SHOWCASE_CONFIGURATIONS if not args.q else np.array(args.q)
+    if not np.all(np.isfinite(q_keyframes)):
+        raise InputError("joint angles must be finite numbers", field="--q")
+    out = Path(args.out)
+    if not out.parent.is_dir():
+        raise InputError("folder does not exist", file=str(out.parent), field="--out")
+    write_configurations_html(out, q_keyframes)
+    print(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB); open it in a browser")
+    return 0

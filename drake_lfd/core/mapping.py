@@ -1,0 +1,231 @@
+"""Map a demonstration onto a task segment (Eq. 22-25, SPEC 6), then bend it exactly
+through the segment's critical configurations.
+
+Given a demo whose feature is similar to a segment con_j .. con_k (an ``Allocation``
+from ``similarity.py``), the demo suffix from the first allocated sample ``i_1`` is
+turned into an SE(3) path that ends exactly at ``D_k``:
+
+1. ``delta_i = D_i* (x) D_m`` for the suffix (Eq. 12; identity for the last sample).
+2. ``q_align`` rotates the demo's first translation ``t_demo`` (of ``delta_i1``) onto the
+   task's first translation ``t_task`` (of ``D_j* (x) D_k``) by the shortest rotation
+   (Eq. 22), optionally followed by ``twist_rad`` about ``t_task`` (SPEC 6).
+3. Each delta keeps its rotation (Eq. 24); its translation becomes
+   ``scale * q_align t_i q_align*`` with ``scale = |t_task| / |t_demo|`` (Eq. 23 with
+   SPEC 6's erratum). Both translations are in the frame of the pose they start from
+   (the body frame at sample i, at con_j), as in the paper.
+4. ``MP_i = D_k (x) mp_i*`` (Eq. 25): ``mp_i`` is the mapped pose of the final frame
+   in frame i, so ``mp_i*`` is its inverse and ``MP_i`` is the world pose of frame i.
+   For the last sample ``mp = identity`` and ``MP = D_k``. Mapping a demo onto its own
+   poses reproduces them.
+
+Then, beyond the paper, at every allocated anchor ``i_l`` the mapped pose ``M_l`` misses
+the task pose ``T_l = D_(j+l-1)`` by the tolerance at most. The residual is taken in the
+body frame, ``B_l = M_l* (x) T_l`` (so ``M_l (x) B_l = T_l``), with ``B = identity`` at
+the end; between consecutive anchors ``B`` is ScLERPed with the sample-index fraction
+(samples are equally spaced in arc length) and applied on the right, ``MP_i (x) B_i``.
+A body-frame correction moves each pose by exactly ``|translation(B_i)|`` and turns it
+about its own origin, so the reported maxima are the true displacement of the path.
+
+Conventions for degenerate translations (``min_length_m``, default 1 mm as in SPEC 5):
+if either first translation is shorter, there is no alignment rotation (identity) and
+the twist, which needs a task axis, applies only when ``t_task`` is long enough; if
+``t_demo`` is shorter, the scale is 1 (a demo that returns to its start has no size to
+compare). Anti-parallel translations turn by pi about a deterministic perpendicular
+axis (``t_demo x e`` with ``e`` the coordinate axis least aligned with ``t_demo``).
+
+Not for: choosing the demo or the allocation (``similarity.py``, planners), timing the
+path, or checking it against obstacles.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from drake_lfd.core.dual_quaternion import (
+    IDENTITY_DUAL_QUATERNION,
+    axis_angle_from_quaternion,
+    dual_quaternion_from_pose,
+    dual_quaternion_multiply,
+    dual_quaternion_relative,
+    dual_quaternion_sclerp,
+    quaternion_from_axis_angle,
+    quaternion_multiply,
+    translation_from_dual_quaternion,
+    vector_rotated_by_quaternion,
+)
+from drake_lfd.core.features import feature_from_poses, poses_from_feature
+from drake_lfd.core.similarity import MIN_TRANSLATION_M
+
+_IDENTITY_QUATERNION = np.array([1.0, 0.0, 0.0, 0.0])
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class MappedSegment:
+    """An SE(3) path for one task segment con_j .. con_k.
+
+    Attributes
+    ----------
+    poses : array, shape (N, 8)
+        World poses ``X_WE``; ``poses[0]`` is ``D_j`` and ``poses[-1]`` is ``D_k``
+        exactly. No sign (double cover) normalisation between samples.
+    anchor_indices : array of int, shape (p + 1,)
+        Indices into ``poses`` where con_j .. con_k are met; first 0, last N - 1.
+    max_correction_position_m : float
+        Largest displacement of a pose by the anchor correction.
+    max_correction_rotation_rad : float
+        Largest rotation of a pose by the anchor correction.
+    uncorrected_poses : array, shape (N, 8)
+        The path of Eq. 22-25 before the correction (ends at ``D_k``).
+    scale : float
+        ``|t_task| / |t_demo|`` applied to the demo translations.
+    alignment : array, shape (4,)
+        Unit quaternion applied to the demo translations (alignment, then twist).
+    """
+
+    poses: np.ndarray
+    anchor_indices: np.ndarray
+    max_correction_position_m: float
+    max_correction_rotation_rad: float
+    uncorrected_poses: np.ndarray
+    scale: float
+    alignment: np.ndarray
+
+
+def alignment_from_translations(t_demo, t_task, twist_rad=0.0, min_length_m=MIN_TRANSLATION_M):
+    """Rotation aligning the demo's first translation with the task's (Eq. 22).
+
+    Parameters
+    ----------
+    t_demo, t_task : array-like, shape (3,)
+    twist_rad : float
+        Extra rotation about ``t_task``'s direction after the alignment (SPEC 6).
+    min_length_m : float
+        Shorter translations have no direction (see the module docstring).
+
+    Returns
+    -------
+    q : array, shape (4,)
+        Unit quaternion with ``q t_demo q*`` parallel to ``t_task`` (when both are long
+        enough).
+    """
+    t_demo = np.asarray(t_demo, dtype=float)
+    t_task = np.asarray(t_task, dtype=float)
+    demo_length = np.linalg.norm(t_demo)
+    task_length = np.linalg.norm(t_task)
+    if demo_length < min_length_m or task_length < min_length_m:
+        q = _IDENTITY_QUATERNION
+    else:
+        a = t_demo / demo_length
+        b = t_task / task_length
+        cosine = float(np.dot(a, b))
+        if cosine < -1.0 + 1e-9:
+            # Anti-parallel: pi about a perpendicular axis, built from the coordinate
+            # axis least aligned with a so the cross product is well conditioned.
+            axis = np.cross(a, np.eye(3)[np.argmin(np.abs(a))])
+            q = np.concatenate([[0.0], axis / np.linalg.norm(axis)])
+        else:
+            # Half-angle form of cos(phi/2) + n sin(phi/2), exact without acos.
+            q = np.concatenate([[1.0 + cosine], np.cross(a, b)])
+            q = q / np.linalg.norm(q)
+    if twist_rad != 0.0 and task_length >= min_length_m:
+        twist = quaternion_from_axis_angle(t_task / task_length, twist_rad)
+        q = quaternion_multiply(twist, q)
+    return q
+
+
+def mapped_poses_from_deltas(deltas, D_final, alignment, scale):
+    """Eq. 23-25: rotate and scale the delta translations, keep their rotations, place.
+
+    Parameters
+    ----------
+    deltas : array-like, shape (N - 1, 8)
+        Demo deltas ``D_i* (x) D_m`` of the samples before the last.
+    D_final : array-like, shape (8,)
+        The segment's last pose ``D_k``.
+    alignment : array-like, shape (4,)
+        Unit quaternion applied to the translations.
+    scale : float
+
+    Returns
+    -------
+    poses : array, shape (N, 8)
+        ``D_k (x) mp_i*`` for each delta, then ``D_k``.
+    """
+    deltas = np.asarray(deltas, dtype=float)
+    translations = scale * vector_rotated_by_quaternion(alignment, translation_from_dual_quaternion(deltas))
+    mapped = dual_quaternion_from_pose(translations, deltas[:, :4])  # Eq. 24
+    return poses_from_feature(mapped, D_final)  # Eq. 25
+
+
+def map_segment(demo_poses, allocation, task_poses, twist_rad=0.0, min_length_m=MIN_TRANSLATION_M):
+    """Map a demonstration onto a segment through all its critical configurations.
+
+    Parameters
+    ----------
+    demo_poses : array-like, shape (m, 8)
+        The (resampled) demo poses whose feature the allocation indexes.
+    allocation : similarity.Allocation
+        Demo indices ``i_1 < ... < i_p`` allocated to the segment's p deltas.
+    task_poses : array-like, shape (p + 1, 8)
+        ``D_j .. D_k``, the segment's critical configurations.
+    twist_rad : float
+        Free twist about the task's first translation (SPEC 6).
+    min_length_m : float
+        Translation length below which a direction is undefined.
+
+    Returns
+    -------
+    segment : MappedSegment
+        ``N = m - i_1`` poses.
+    """
+    demo_poses = np.asarray(demo_poses, dtype=float)
+    task_poses = np.asarray(task_poses, dtype=float)
+    indices = np.asarray(allocation.indices, dtype=int)
+    p = len(indices)
+    if task_poses.shape != (p + 1, 8):
+        raise ValueError(f"task_poses must have shape ({p + 1}, 8) for {p} allocated deltas, "
+                         f"got {task_poses.shape}")
+    if p == 0 or np.any(np.diff(indices) <= 0) or indices[0] < 0 or indices[-1] >= len(demo_poses) - 1:
+        raise ValueError(f"allocation indices {indices} are not strictly increasing demo "
+                         f"delta indices below {len(demo_poses) - 1}")
+
+    suffix = demo_poses[indices[0]:]
+    deltas = feature_from_poses(suffix)
+    t_demo = translation_from_dual_quaternion(deltas[0])
+    t_task = translation_from_dual_quaternion(dual_quaternion_relative(task_poses[0], task_poses[-1]))
+    alignment = alignment_from_translations(t_demo, t_task, twist_rad, min_length_m)
+    demo_length = np.linalg.norm(t_demo)
+    scale = 1.0 if demo_length < min_length_m else float(np.linalg.norm(t_task) / demo_length)
+    uncorrected = mapped_poses_from_deltas(deltas, task_poses[-1], alignment, scale)
+
+    anchors = np.append(indices - indices[0], len(suffix) - 1)
+    residuals = np.concatenate(
+        [dual_quaternion_relative(uncorrected[anchors[:-1]], task_poses[:-1]), IDENTITY_DUAL_QUATERNION[None]]
+    )
+    corrections = _corrections_between_anchors(residuals, anchors)
+    # At an anchor the correction is the residual itself (ScLERP at s = 0 is exact), so
+    # the pose there is M (x) M* (x) T = T to rounding, with T's sign.
+    poses = dual_quaternion_multiply(uncorrected, corrections)
+
+    _, correction_angle = axis_angle_from_quaternion(corrections[:, :4])
+    correction_distance = np.linalg.norm(translation_from_dual_quaternion(corrections), axis=-1)
+    anchors.flags.writeable = False
+    return MappedSegment(
+        poses=poses,
+        anchor_indices=anchors,
+        max_correction_position_m=float(correction_distance.max()),
+        max_correction_rotation_rad=float(correction_angle.max()),
+        uncorrected_poses=uncorrected,
+        scale=scale,
+        alignment=alignment,
+    )
+
+
+def _corrections_between_anchors(residuals, anchors):
+    """ScLERP residuals (p + 1, 8) between anchor indices (p + 1,) -> (anchors[-1] + 1, 8)."""
+    samples = np.arange(anchors[-1] + 1)
+    interval = np.clip(np.searchsorted(anchors, samples, side="right") - 1, 0, len(anchors) - 2)
+    fraction = (samples - anchors[interval]) / (anchors[interval + 1] - anchors[interval])
+    return dual_quaternion_sclerp(residuals[interval], residuals[interval + 1], fraction)

@@ -1,0 +1,48 @@
+"""Where drake-lfd's shipped data lives: the UR5e model and the paper scenarios.
+
+An installed drake-lfd carries them inside the package (``drake_lfd/models``,
+``drake_lfd/sims``); a source checkout has them at the top of the repository
+(``models/``, ``sims/``). Nothing here reads or writes them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["package_directory", "models_directory", "scenarios_directory", "bundled_library_directories"]
+
+
+def package_directory() -> Path:
+    """The ``drake_lfd`` package folder."""
+    return Path(__file__).resolve().parent.parent
+
+
+def _first_with(relative: str, marker: str) -> Path | None:
+    for base in (package_directory(), package_directory().parent):
+        candidate = base / relative
+        if (candidate / marker).is_file():
+            return candidate
+    return None
+
+
+def models_directory() -> Path:
+    """The folder holding ``package.xml`` and the models (installed or checkout)."""
+    found = _first_with("models", "package.xml")
+    if found is None:
+        raise FileNotFoundError(
+            f"drake-lfd's models are missing: looked for models/package.xml in "
+            f"{package_directory()} and {package_directory().parent}")
+    return found
+
+
+def scenarios_directory() -> Path:
+    """The paper scenarios: installed with the package, or the checkout's ``sims/``."""
+    found = _first_with("sims", "transferring.yaml")
+    if found is None:
+        raise FileNotFoundError("drake-lfd's scenarios (sims/*.yaml) are missing")
+    return found
+
+
+def bundled_library_directories() -> tuple[Path, Path]:
+    """Folders searched for bundled libraries, in order: installed, then checkout."""
+    return (package_directory() / "sims" / "libraries", package_directory().parent / "sims" / "libraries")

@@ -1,0 +1,128 @@
+"""The timing law: from an SE(3) plan (a pose sequence) to a timed end-effector trajectory.
+
+A plan is a sequence of poses X_WE through which the critical configurations pass at
+known indices. Spans between consecutive critical configurations were mapped from
+different demonstrations, so the path direction may turn sharply at a join. The timing
+law therefore brings the tool to rest at every critical configuration: each span follows
+a minimum-jerk profile (zero velocity and acceleration at both ends), so velocity is
+continuous everywhere (zero at joins) and the tool reaches each critical configuration
+without overshoot. Within a span the speed is capped by a maximum TCP speed and angular
+speed (defaults for collaborative work: 0.25 m/s, 1 rad/s).
+
+This module does not choose or map demonstrations (planning and mapping modules do).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.trajectories import PiecewisePose
+
+from drake_lfd.core.dual_quaternion import (
+    axis_angle_from_quaternion,
+    matrices_from_dual_quaternion,
+    quaternion_conjugate,
+    quaternion_multiply,
+    rotation_from_dual_quaternion,
+    translation_from_dual_quaternion,
+)
+
+DEFAULT_MAX_SPEED_M_S = 0.25
+DEFAULT_MAX_ANGULAR_SPEED_RAD_S = 1.0
+MIN_SPAN_DURATION_S = 0.2
+# Peak of d/dtau of the minimum-jerk profile 10 tau^3 - 15 tau^4 + 6 tau^5.
+_MINIMUM_JERK_PEAK_RATE = 1.875
+
+
+@dataclass(frozen=True)
+class TimedPlan:
+    """End-effector poses with times.
+
+    Attributes
+    ----------
+    times : array, shape (n,), strictly increasing, starting at 0.
+    poses : array, shape (n, 8), unit dual quaternions of X_WE.
+    critical_indices : tuple of int, index into ``poses`` where each con_i is met.
+    """
+
+    times: np.ndarray
+    poses: np.ndarray
+    critical_indices: tuple[int, ...]
+
+    @property
+    def duration(self) -> float:
+        return float(self.times[-1])
+
+    def X_WE_list(self) -> list[RigidTransform]:
+        return [RigidTransform(T) for T in matrices_from_dual_quaternion(self.poses)]
+
+    def to_piecewise_pose(self) -> PiecewisePose:
+        """Linear in position, slerp in rotation between the (dense) samples."""
+        return PiecewisePose.MakeLinear(list(self.times), self.X_WE_list())
+
+
+def _minimum_jerk(tau: np.ndarray) -> np.ndarray:
+    return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
+
+
+def _step_lengths_s(poses: np.ndarray, max_speed: float, max_angular_speed: float) -> np.ndarray:
+    """Time each step would take at full speed: max(|dp| / v, dtheta / omega), shape (n-1,)."""
+    p = translation_from_dual_quaternion(poses)
+    r = rotation_from_dual_quaternion(poses)
+    dp = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    relative = quaternion_multiply(quaternion_conjugate(r[:-1]), r[1:])
+    _, dtheta = axis_angle_from_quaternion(relative)
+    return np.maximum(dp / max_speed, dtheta / max_angular_speed)
+
+
+def time_plan(
+    poses: np.ndarray,
+    critical_indices,
+    *,
+    max_speed_m_s: float = DEFAULT_MAX_SPEED_M_S,
+    max_angular_speed_rad_s: float = DEFAULT_MAX_ANGULAR_SPEED_RAD_S,
+) -> TimedPlan:
+    """Attaches times to ``poses`` (n, 8), at rest at each of ``critical_indices``.
+
+    Each span between consecutive critical indices lasts
+    ``max(1.875 * L, MIN_SPAN_DURATION_S)`` where L is its duration at full speed, so the
+    minimum-jerk profile's peak speed equals the cap. Consecutive duplicate poses inside
+    a span are dropped (they would need zero time); the returned ``critical_indices``
+    refer to the returned poses.
+    """
+    poses = np.asarray(poses, dtype=float)
+    critical = [int(i) for i in critical_indices]
+    if critical[0] != 0 or critical[-1] != len(poses) - 1 or np.any(np.diff(critical) <= 0):
+        raise ValueError(f"critical_indices must increase from 0 to {len(poses) - 1}: {critical}")
+    step = _step_lengths_s(poses, max_speed_m_s, max_angular_speed_rad_s)
+
+    times = [0.0]
+    kept = [poses[0]]
+    new_critical = [0]
+    t_start = 0.0
+    for first, last in zip(critical[:-1], critical[1:]):
+        lengths = np.concatenate([[0.0], np.cumsum(step[first:last])])
+        total = lengths[-1]
+        duration = max(_MINIMUM_JERK_PEAK_RATE * total, MIN_SPAN_DURATION_S)
+        if total <= 1e-12:
+            # The span does not move: hold the pose for the minimum duration.
+            times.append(t_start + duration)
+            kept.append(poses[last])
+        else:
+            # Invert the monotone profile on a fine grid: time at which each sample is due.
+            tau_grid = np.linspace(0.0, 1.0, 2001)
+            tau = np.interp(lengths / total, _minimum_jerk(tau_grid), tau_grid)
+            for k in range(1, len(lengths)):
+                is_last = k == len(lengths) - 1
+                if not is_last and lengths[k] - lengths[k - 1] <= 1e-12:
+                    continue
+                t = t_start + (duration if is_last else tau[k] * duration)
+                if t - times[-1] <= 1e-9:
+                    continue
+                times.append(t)
+                kept.append(poses[first + k])
+        t_start = times[-1]
+        new_critical.append(len(kept) - 1)
+    return TimedPlan(np.array(times), np.array(kept), tuple(new_critical))

@@ -1,0 +1,198 @@
+"""Closed-loop evaluation trials of a task: plan each concrete trial, run it, judge it.
+
+Trial i (0-based) draws its concrete task with seed ``seed + i``; it is planned with the
+chosen planner, simulated closed loop on the UR5e (``closed_loop.py``) and judged by
+SPEC 9 (critical configurations within 5 mm / 2 deg, path constraints, no penetration of
+obstacles or shells, joint position and speed limits). A trial whose task the library
+cannot cover, or whose first configuration the UR5e cannot reach, fails with the reason.
+
+Not for: the command line (``cli_simulate.py``) or the paper's report (``paper.py``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+from typing import Callable, Mapping
+
+import numpy as np
+
+from drake_lfd.diagrams.closed_loop import ClosedLoopResult, judge_run, run_closed_loop
+from drake_lfd.core.errors import InputError
+from drake_lfd.core.features import Feature
+from drake_lfd.robot.kinematics import shared_kinematics
+from drake_lfd.io.plan_json import composition_json, critical_configurations_json, describe_uncovered
+from drake_lfd.planning.planner import PlanResult, plan_task
+from drake_lfd.io.pose_records import pose_json_from_rigid_transform
+from drake_lfd.planning.q_learning import QPolicy
+from drake_lfd.robot.scene import table_under_robot
+from drake_lfd.io.task_files import Task, draw_trial
+
+
+@dataclasses.dataclass
+class TrialOutcome:
+    trial: int  # 1-based
+    seed: int
+    plan: PlanResult | None
+    run: ClosedLoopResult | None
+    success: bool
+    failures: list[str]
+
+    @property
+    def composition_label(self) -> str | None:
+        """``"filling+stacking+screw_ccw"``, or None without a plan."""
+        if self.plan is None or not self.plan.planned:
+            return None
+        return "+".join(step.demo for step in self.plan.composition)
+
+
+def run_trial(
+    task: Task,
+    features: Mapping[str, Feature],
+    *,
+    trial: int,
+    seed: int,
+    planner: str = "exact",
+    policy: QPolicy | None = None,
+    record_html: str | Path | None = None,
+    with_table: bool = True,
+) -> TrialOutcome:
+    """Plans, simulates and judges one concrete trial of ``task``."""
+    concrete = draw_trial(task, seed)
+    table = table_under_robot(task.X_WB) if with_table else None
+    floor_z = None if table is None else float(table.centre[2] + table.size[2] / 2)
+    plan = plan_task(concrete, features, planner=planner, policy=policy, seed=seed, floor_z=floor_z)
+    if not plan.planned:
+        return TrialOutcome(trial, seed, plan, None, False,
+                            ["demonstration requested: " + line for line in describe_uncovered(plan)])
+    try:
+        run = run_closed_loop(
+            plan.timed, X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, obstacles=task.obstacles,
+            safety_shells=task.safety_shells, table=table, record_html=record_html,
+        )
+    except InputError as error:  # con_1 unreachable for the UR5e
+        return TrialOutcome(trial, seed, plan, None, False, [str(error)])
+    kinematics = shared_kinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+    judgement = judge_run(
+        run, plan.timed, joint_limits=kinematics.position_limits(),
+        velocity_limits=kinematics.velocity_limits(), path_constraints=concrete.path_constraints,
+    )
+    return TrialOutcome(trial, seed, plan, run, judgement.success, list(judgement.failures))
+
+
+def run_trials(
+    task: Task,
+    features: Mapping[str, Feature],
+    *,
+    trials: int,
+    seed: int = 0,
+    planner: str = "exact",
+    policy: QPolicy | None = None,
+    record_html: str | Path | None = None,
+    progress: Callable[[int, int, TrialOutcome], None] | None = None,
+) -> tuple[list[TrialOutcome], float]:
+    """Runs ``trials`` trials (seeds ``seed``, ``seed + 1``, ...); the first one that plans
+    is recorded to ``record_html``. Returns the outcomes and the wall time."""
+    start = time.perf_counter()
+    outcomes = []
+    recorded = record_html is None
+    for i in range(trials):
+        outcome = run_trial(
+            task, features, trial=i + 1, seed=seed + i, planner=planner, policy=policy,
+            record_html=None if recorded else record_html,
+        )
+        recorded = recorded or outcome.run is not None
+        outcomes.append(outcome)
+        if progress:
+            progress(i + 1, trials, outcome)
+    return outcomes, time.perf_counter() - start
+
+
+def simulate_json(task: Task, outcomes: list[TrialOutcome], wall_time_s: float) -> dict:
+    """The ``simulate --json`` document (INTERFACES.md). Extra per-trial fields:
+    ``status`` (the plan's), ``min_distance_pair`` and ``critical_times_s`` (when each
+    critical configuration was due, so the verdict can be re-derived from ``t``/``q``)."""
+    trials = []
+    for outcome in outcomes:
+        entry = {
+            "trial": outcome.trial,
+            "seed": outcome.seed,
+            "success": outcome.success,
+            "failures": outcome.failures,
+            "status": outcome.plan.status if outcome.plan else None,
+            "critical_configurations": critical_configurations_json(outcome.plan) if outcome.plan else [],
+            "composition": composition_json(outcome.plan) if outcome.plan else [],
+        }
+        if outcome.run is not None:
+            entry.update(outcome.run.trial_fields())
+            entry["min_distance_pair"] = outcome.run.min_distance_pair
+            entry["critical_times_s"] = [float(e.time_s) for e in outcome.run.critical_errors]
+        else:
+            entry.update({"critical_errors": [], "min_shell_distance_m": None,
+                          "max_joint_speed_fraction": None, "t": [], "q": []})
+        trials.append(entry)
+    sim_time = float(sum(o.run.sim_time_s for o in outcomes if o.run is not None))
+    return {
+        "task": task.name,
+        "X_WB": pose_json_from_rigid_transform(task.X_WB),
+        "X_tool0_E": pose_json_from_rigid_transform(task.X_tool0_E),
+        "trials_requested": len(outcomes),
+        "success_count": sum(o.success for o in outcomes),
+        "wall_time_s": float(wall_time_s),
+        "sim_time_s": sim_time,
+        "trials": trials,
+    }
+
+
+def composition_counts(outcomes: list[TrialOutcome]) -> dict[str, int]:
+    """How often each composition was used, e.g. ``{"filling+stacking+screw_ccw": 20}``."""
+    counts: dict[str, int] = {}
+    for outcome in outcomes:
+        label = outcome.composition_label
+        if label:
+            counts[label] = counts.get(label, 0) + 1
+    return dict(sorted(counts.items(), key=lambda item: -item[1]))
+
+
+def clearance_over_time(task: Task, run: ClosedLoopResult, stride: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """Least signed distance of the robot to the task's obstacles and shells along a run,
+    re-queried from the logged joints every ``stride`` samples: times (k,), metres (k,)."""
+    from drake_lfd.robot.scene import KinematicScene
+
+    scene = KinematicScene(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, obstacles=task.obstacles,
+                           safety_shells=task.safety_shells)
+    t = run.t[::stride]
+    return t, np.array([scene.signed_distances(q).min() for q in run.q[::stride]])
+
+
+def write_trial_figures(task: Task, outcome: TrialOutcome, out: Path, prefix: str) -> dict[str, str]:
+    """The SE(3) plan with triads, the joint trajectories with limits and, when the task has
+    obstacles or shells, the distance to them over time; returns {kind: file name}."""
+    from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure, shell_distance_figure
+
+    figures = {}
+    concrete = outcome.plan.task
+    figures["plan"] = plan_figure(
+        out / f"{prefix}_plan.png", outcome.plan.timed.poses, outcome.plan.timed.critical_indices,
+        obstacles=concrete.obstacles, safety_shells=concrete.safety_shells,
+        title=f"{prefix}: SE(3) plan, trial {outcome.trial}").name
+    kinematics = shared_kinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+    lower, upper = kinematics.position_limits()
+    figures["joints"] = joint_trajectories_figure(
+        out / f"{prefix}_joints.png", outcome.run.t, outcome.run.q, lower=lower, upper=upper,
+        velocity_limit=kinematics.velocity_limits(), title=f"{prefix}: joints, trial {outcome.trial}").name
+    if task.obstacles or task.safety_shells:
+        t, distance = clearance_over_time(task, outcome.run)
+        figures["distance"] = shell_distance_figure(
+            out / f"{prefix}_distance.png", t, distance,
+            title=f"{prefix}: distance to obstacles and shells, trial {outcome.trial}").name
+    return figures
+
+
+def trial_summary_line(outcome: TrialOutcome) -> str:
+    verdict = "success" if outcome.success else "FAILED: " + "; ".join(outcome.failures[:2])
+    composition = outcome.composition_label or "no plan"
+    distance = outcome.run.min_shell_distance_m if outcome.run is not None else np.nan
+    clearance = f"min distance {distance * 100:.1f} cm" if np.isfinite(distance) else "no obstacles"
+    return f"trial {outcome.trial} (seed {outcome.seed}): {composition}; {clearance}; {verdict}"

@@ -1,0 +1,92 @@
+"""The JSON form of a plan or demonstration request (INTERFACES.md, ``plan --json``).
+
+Not for: computing plans (``planning.py``).
+"""
+
+from __future__ import annotations
+
+from drake_lfd.core.dual_quaternion import pose_from_dual_quaternion
+from drake_lfd.planning.planner import PlanResult
+from drake_lfd.io.pose_records import pose_json_from_rigid_transform
+
+
+def _floats(values) -> list[float]:
+    return [float(v) for v in values]
+
+
+def critical_configurations_json(result: PlanResult) -> list[dict]:
+    return [
+        {"con": i + 1, "p": _floats(con.p), "euler_zyx": _floats(result.euler_zyx[i])}
+        for i, con in enumerate(result.task.critical_configurations)
+    ]
+
+
+def composition_json(result: PlanResult) -> list[dict]:
+    return [
+        {"demo": s.demo, "from": s.con_from, "to": s.con_to, "cost": float(s.cost)}
+        for s in result.composition
+    ]
+
+
+def uncovered_json(result: PlanResult) -> list[dict]:
+    return [
+        {
+            "from": u.con_from,
+            "to": u.con_to,
+            "axis": _floats(u.axis),
+            "angle_rad": float(u.angle_rad),
+            "translation_m": _floats(u.translation_m),
+        }
+        for u in result.uncovered
+    ]
+
+
+def plan_json(result: PlanResult) -> dict:
+    """The ``plan --json`` document. Extra optional field: ``q_planner`` (Q runs only)."""
+    poses = []
+    critical_indices = []
+    if result.timed is not None:
+        p, q = pose_from_dual_quaternion(result.timed.poses)
+        poses = [
+            {"t": float(t), "p": _floats(pi), "q_wxyz": _floats(qi if qi[0] >= 0 else -qi)}
+            for t, pi, qi in zip(result.timed.times, p, q)
+        ]
+        critical_indices = [int(i) for i in result.timed.critical_indices]
+    document = {
+        "status": result.status,
+        "task": result.task.name,
+        "X_WB": pose_json_from_rigid_transform(result.task.X_WB),
+        "X_tool0_E": pose_json_from_rigid_transform(result.task.X_tool0_E),
+        "planner": result.planner,
+        "critical_configurations": critical_configurations_json(result),
+        "composition": composition_json(result),
+        "total_cost": float(result.total_cost) if result.planned else None,
+        "poses": poses,
+        "critical_indices": critical_indices,
+        "max_correction": {
+            "position_m": float(result.max_correction_position_m),
+            "rotation_rad": float(result.max_correction_rotation_rad),
+        },
+        "uncovered": uncovered_json(result),
+    }
+    if result.planner == "q":
+        document["q_planner"] = {
+            "greedy_completed": result.greedy_completed,
+            "fallback": result.fallback,
+            "refine_episodes": result.refine_episodes,
+        }
+    return document
+
+
+def describe_uncovered(result: PlanResult) -> list[str]:
+    """One human line per uncovered segment: what the new demonstration must show."""
+    import numpy as np
+
+    lines = []
+    for u in result.uncovered:
+        lines.append(
+            f"con_{u.con_from} -> con_{u.con_to}: rotate {np.degrees(u.angle_rad):.0f} deg about "
+            f"body axis [{', '.join(f'{a:.2f}' for a in u.axis)}] while translating "
+            f"[{', '.join(f'{t:.3f}' for t in u.translation_m)}] m (in con_{u.con_from}'s frame)"
+        )
+    return lines

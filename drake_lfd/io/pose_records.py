@@ -1,0 +1,115 @@
+"""Poses in files: the JSON form ``{"p": [x, y, z], "q_wxyz": [w, x, y, z]}``.
+
+Every JSON that drake-lfd writes (library manifests, ``--json`` reports) states poses in
+this form (INTERFACES.md, "Frames and units"), so anyone can rebuild them with their own
+tools. This module converts between it and pydrake's ``RigidTransform`` and checks what
+a user's file holds: finite numbers and a quaternion of unit norm (within 1e-6, then
+normalised). Problems are :class:`~drake_lfd.core.errors.InputError` naming file and field.
+
+Not for: task files (they write orientations as ``euler_zyx``, see ``tasks.py``) or dual
+quaternions (``dual_quaternion.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RigidTransform, RotationMatrix
+
+from drake_lfd.core.errors import InputError
+
+# A stored quaternion may be off unit norm by rounding in whatever wrote it; more than
+# this means the numbers are not a rotation (a typo, or a different convention).
+UNIT_NORM_TOLERANCE = 1e-6
+
+POSE_KEYS = ("p", "q_wxyz")
+
+
+def pose_json_from_rigid_transform(X):
+    """The JSON form of a pose.
+
+    Parameters
+    ----------
+    X : RigidTransform
+
+    Returns
+    -------
+    pose : dict
+        ``{"p": [x, y, z], "q_wxyz": [w, x, y, z]}`` with plain floats and ``w >= 0``
+        (of the two quaternions of a rotation, the one a reader expects).
+    """
+    q = X.rotation().ToQuaternion().wxyz()
+    if q[0] < 0.0:
+        q = -q
+    return {
+        "p": [float(v) for v in X.translation()],
+        "q_wxyz": [float(v) for v in q],
+    }
+
+
+def _finite_numbers(value, count, *, file, field):
+    """``value`` as a float array of shape (count,), or an InputError."""
+    if not isinstance(value, (list, tuple)) or len(value) != count:
+        raise InputError(f"expected a list of {count} numbers, got {value!r}", file=file, field=field)
+    numbers = []
+    for index, item in enumerate(value):
+        if isinstance(item, bool) or not isinstance(item, (int, float)):
+            raise InputError(f"expected a number, got {item!r}", file=file, field=f"{field}[{index}]")
+        if not math.isfinite(item):
+            raise InputError(f"{item!r} is not a finite number", file=file, field=f"{field}[{index}]")
+        numbers.append(float(item))
+    return np.array(numbers)
+
+
+def rigid_transform_from_pose_json(value, *, file=None, field=None):
+    """A pose read from a file, checked.
+
+    Parameters
+    ----------
+    value : object
+        The parsed JSON value; must be a mapping with exactly the keys ``p`` (3 finite
+        numbers, metres) and ``q_wxyz`` (4 finite numbers of unit norm within
+        :data:`UNIT_NORM_TOLERANCE`; normalised before use).
+    file : str or Path, optional
+        The file it came from, for error messages.
+    field : str, optional
+        Where in the file it is (for example ``"X_tool0_E"``), for error messages.
+
+    Returns
+    -------
+    X : RigidTransform
+
+    Raises
+    ------
+    InputError
+        Naming the file and the field (for example ``X_tool0_E.q_wxyz[2]``).
+    """
+    prefix = field or "pose"
+    if not isinstance(value, dict):
+        raise InputError(
+            'expected a pose {"p": [x, y, z], "q_wxyz": [w, x, y, z]}, got ' + repr(value),
+            file=file,
+            field=field,
+        )
+    unknown = sorted(str(key) for key in value if key not in POSE_KEYS)
+    if unknown:
+        raise InputError(
+            f"unknown key {unknown[0]!r} (a pose has keys p and q_wxyz)", file=file, field=prefix
+        )
+    missing = [key for key in POSE_KEYS if key not in value]
+    if missing:
+        raise InputError(f"missing key {missing[0]!r}", file=file, field=prefix)
+    p = _finite_numbers(value["p"], 3, file=file, field=f"{prefix}.p")
+    q = _finite_numbers(value["q_wxyz"], 4, file=file, field=f"{prefix}.q_wxyz")
+    norm = float(np.linalg.norm(q))
+    if abs(norm - 1.0) > UNIT_NORM_TOLERANCE:
+        raise InputError(
+            f"quaternion {q.tolist()} has norm {norm:.9g}; a rotation needs norm 1 "
+            f"(within {UNIT_NORM_TOLERANCE:g}), written as [w, x, y, z]",
+            file=file,
+            field=f"{prefix}.q_wxyz",
+        )
+    q = q / norm
+    return RigidTransform(RotationMatrix(Quaternion(q)), p)

@@ -1,0 +1,642 @@
+"""Task files: critical configurations, obstacles, shells, constraints (Eq. 10, SPEC 4).
+
+A task ``TK`` is a sequence of critical configurations ``con_i = <P_i, theta_i>`` the
+end-effector frame E must pass through, numbered from 1 as in the paper. A task file is
+YAML, loaded with ``pydrake.common.yaml.yaml_load_typed`` into the ``*Spec`` dataclasses
+below (unknown keys are errors), then checked into a :class:`Task`. Each evaluation trial
+draws a :class:`ConcreteTask` from it with :func:`draw_trial`.
+
+Example, the paper's Table 8 (filling and pouring)::
+
+    name: filling_pouring
+    description: fill cup 1, carry the water upright, pour into cup 2
+    X_WB: {p: [0, 0, 0], euler_zyx: [0, 0, 0]}         # robot base in W; identity if absent
+    X_tool0_E: {p: [0, 0, 0], euler_zyx: [0, 0, 0]}    # E on tool0; identity if absent
+    angle_grid_deg: 15                                  # grid for bounded angles; 15 if absent
+    variables:            # position ranges drawn once per trial and shared by every use
+      x: [-0.5, 0.7]
+      y: [-0.2, 0.0]
+    critical_configurations:
+      - {p: [-0.4, -0.1, 0.0], euler_zyx: [0, -pi, 0]}
+      - {p: [-0.5, 0.1, 0.1], euler_zyx: [0, -pi/2, [-pi, pi]]}
+      - {p: [-0.7, -0.1, 0.1], euler_zyx: [0, -pi/2, [-pi, pi]]}
+      - {p: [x, y, 0.1], euler_zyx: [0, -pi/2, [-pi, pi]]}
+      - {p: [x, y, 0.0], euler_zyx: [pi/2, 0, -pi/2]}
+    obstacles:            # axis-aligned boxes in W: centre and full edge lengths, metres
+      - {name: cup_1, centre: [-0.4, -0.1, -0.05], size: [0.08, 0.08, 0.1]}
+    safety_shells:        # keep-out boxes no robot geometry may enter
+      - {name: cup_1_shell, centre: [-0.4, -0.1, -0.05], size: [0.12, 0.12, 0.12]}
+    path_constraints:     # judged on a run: tool orientation within tolerance from con to con
+      - {kind: orientation, between: [2, 4], euler_zyx: [0, -pi/2, 0], tolerance_deg: 10}
+
+Values:
+
+- Positions ``p: [x, y, z]`` in metres. Each coordinate is a number, an inline range
+  ``[lower, upper]`` (drawn uniformly per trial, independently of every other), or the
+  name of an entry of ``variables`` (drawn once per trial; every coordinate naming it
+  gets the same value: Table 7's ``z`` of con_2 and con_3, Table 8's ``(x, y)`` of
+  con_4 and con_5). A position range is trial-to-trial variation, not a planner freedom.
+- Orientations ``euler_zyx: [yaw, pitch, roll]`` in radians, ``R = Rz(yaw) Ry(pitch)
+  Rx(roll)`` (Eq. 17, SPEC 2). Each angle is fixed, or bounded ``[lower, upper]``: a
+  freedom the planner chooses among the grid :func:`angle_candidates` (every
+  ``angle_grid_deg`` or finer, both bounds included). Angles may be written as numbers,
+  as multiples of pi (``pi``, ``-pi/2``, ``3*pi/4``, ``0.5pi``) or in degrees
+  (``-90deg``), so the paper's values stay readable. Each bounded angle is chosen per
+  critical configuration; variables are for positions only.
+- ``path_constraints[*].between: [j, k]`` are critical configuration numbers (1-based,
+  ``j < k``); ``kind: orientation`` asks the tool orientation to stay within
+  ``tolerance_deg`` of ``euler_zyx`` from con_j to con_k.
+- Root keys starting with ``_`` are ignored (YAML anchors for reuse, as in Drake).
+
+Every problem is an :class:`~drake_lfd.core.errors.InputError` naming the file and the field
+(``critical_configurations[3].p[2]``, list indices from 0; the message also names the
+1-based ``con_4``). Not for: planning (the planners), simulating the scene (the
+closed-loop modules), random training tasks beyond :meth:`ConcreteTask.from_fixed`.
+"""
+
+
+import dataclasses
+import itertools
+import math
+import re
+from pathlib import Path
+from typing import Union
+
+import numpy as np
+from pydrake.math import RigidTransform
+
+from drake_lfd.core.errors import InputError
+
+# The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
+# scripts. angle_from_text and rigid_transform_from_euler_zyx stay importable from here.
+from drake_lfd.io.yaml_checks import (
+    Scalar,
+    angle,
+    angle_from_text,  # noqa: F401 (re-exported)
+    finite,
+    load_spec,
+    pose,
+    read_text,
+    required,
+    rigid_transform_from_euler_zyx,  # noqa: F401 (re-exported)
+    vector,
+)
+from drake_lfd.core.read_only_arrays import read_only_array
+
+# No ``from __future__ import annotations`` here: yaml_load_typed reads the Spec fields'
+# types at run time and needs them as types, not strings.
+
+DEFAULT_ANGLE_GRID_DEG = 15.0
+MIN_CRITICAL_CONFIGURATIONS = 2
+PATH_CONSTRAINT_KINDS = ("orientation",)
+
+# ------------------------------------------------------------------ schema (the YAML)
+
+# A coordinate or angle: a number-like token, or a [lower, upper] list of them.
+Entry = Union[list[Scalar], float, int, str]
+
+
+@dataclasses.dataclass
+class PoseSpec:
+    """A fixed pose: ``p`` in metres, ``euler_zyx`` = [yaw, pitch, roll] in radians."""
+
+    p: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    euler_zyx: list[Scalar] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+@dataclasses.dataclass
+class CriticalConfigurationSpec:
+    """``con_i``: each coordinate / angle a value, a [lower, upper] range or a variable."""
+
+    p: list[Entry] = dataclasses.field(
+        default_factory=list,
+        metadata={"required": True, "expected": "a number, a [lower, upper] list or a variable name"},
+    )
+    euler_zyx: list[Entry] = dataclasses.field(
+        default_factory=list,
+        metadata={"required": True, "expected": "an angle or a [lower, upper] list of angles"},
+    )
+
+
+@dataclasses.dataclass
+class BoxSpec:
+    """An axis-aligned box in W: ``centre`` and full edge lengths ``size``, metres."""
+
+    name: str = required(str)
+    centre: list[float] = required(list)
+    size: list[float] = required(list)
+
+
+@dataclasses.dataclass
+class PathConstraintSpec:
+    """A constraint judged on a run between two critical configurations (1-based)."""
+
+    kind: str = "orientation"
+    between: list[int] = required(list)
+    euler_zyx: list[Scalar] = required(list)
+    tolerance_deg: float = required(float)
+
+
+@dataclasses.dataclass
+class TaskSpec:
+    """The whole task file (see the module docstring)."""
+
+    name: str = ""
+    description: str = ""
+    X_WB: PoseSpec = dataclasses.field(default_factory=PoseSpec)
+    X_tool0_E: PoseSpec = dataclasses.field(default_factory=PoseSpec)
+    angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
+    variables: dict[str, list[Scalar]] = dataclasses.field(default_factory=dict)
+    critical_configurations: list[CriticalConfigurationSpec] = required(list)
+    obstacles: list[BoxSpec] = dataclasses.field(default_factory=list)
+    safety_shells: list[BoxSpec] = dataclasses.field(default_factory=list)
+    path_constraints: list[PathConstraintSpec] = dataclasses.field(default_factory=list)
+
+
+# ------------------------------------------------------------------ checked task types
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Box:
+    """An axis-aligned box: ``centre`` (3,) and full edge lengths ``size`` (3,), metres."""
+
+    name: str
+    centre: np.ndarray
+    size: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "centre", read_only_array(self.centre, (3,)))
+        object.__setattr__(self, "size", read_only_array(self.size, (3,)))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class PathConstraint:
+    """Keep the tool orientation within ``tolerance_rad`` of ``euler_zyx`` (3,) from
+    ``con_from`` to ``con_to`` (1-based, inclusive)."""
+
+    kind: str
+    con_from: int
+    con_to: int
+    euler_zyx: np.ndarray
+    tolerance_rad: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "euler_zyx", read_only_array(self.euler_zyx, (3,)))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CriticalConfiguration:
+    """``con_i`` as the task file states it, with its ranges.
+
+    Attributes
+    ----------
+    p_lower, p_upper : array, shape (3,)
+        Position bounds (equal for a fixed coordinate), metres.
+    p_variables : tuple of 3 (str or None)
+        The variable each coordinate names, or None.
+    euler_zyx_lower, euler_zyx_upper : array, shape (3,)
+        [yaw, pitch, roll] bounds (equal for a fixed angle), radians.
+    """
+
+    p_lower: np.ndarray
+    p_upper: np.ndarray
+    p_variables: tuple
+    euler_zyx_lower: np.ndarray
+    euler_zyx_upper: np.ndarray
+
+    def __post_init__(self):
+        for name in ("p_lower", "p_upper", "euler_zyx_lower", "euler_zyx_upper"):
+            object.__setattr__(self, name, read_only_array(getattr(self, name), (3,)))
+        object.__setattr__(self, "p_variables", tuple(self.p_variables))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Task:
+    """A checked task file (SPEC 4); :func:`draw_trial` makes concrete trials of it."""
+
+    name: str
+    critical_configurations: tuple
+    X_WB: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    X_tool0_E: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
+    variables: dict = dataclasses.field(default_factory=dict)  # name -> (lower, upper)
+    obstacles: tuple = ()
+    safety_shells: tuple = ()
+    path_constraints: tuple = ()
+    description: str = ""
+    file: str | None = None
+
+    def __len__(self):
+        return len(self.critical_configurations)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ConcreteCriticalConfiguration:
+    """``con_i`` of one trial: a fixed position, angles fixed or bounded.
+
+    Attributes
+    ----------
+    p : array, shape (3,)
+        Position in W, metres.
+    euler_zyx_lower, euler_zyx_upper : array, shape (3,)
+        [yaw, pitch, roll] bounds in radians; equal where the angle is fixed.
+    angle_grid_deg : float
+        Grid step for the bounded angles (:func:`angle_candidates`).
+    """
+
+    p: np.ndarray
+    euler_zyx_lower: np.ndarray
+    euler_zyx_upper: np.ndarray
+    angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
+
+    def __post_init__(self):
+        for name in ("p", "euler_zyx_lower", "euler_zyx_upper"):
+            object.__setattr__(self, name, read_only_array(getattr(self, name), (3,)))
+        if np.any(self.euler_zyx_lower > self.euler_zyx_upper):
+            raise ValueError("euler_zyx_lower must be <= euler_zyx_upper")
+        if not self.angle_grid_deg > 0.0:
+            raise ValueError(f"angle_grid_deg must be > 0, got {self.angle_grid_deg}")
+
+    @classmethod
+    def fixed(cls, p, euler_zyx):
+        """A configuration with every angle fixed."""
+        return cls(p=p, euler_zyx_lower=euler_zyx, euler_zyx_upper=euler_zyx)
+
+    @property
+    def is_orientation_fixed(self) -> bool:
+        return bool(np.all(self.euler_zyx_lower == self.euler_zyx_upper))
+
+    @property
+    def euler_zyx(self) -> np.ndarray:
+        """The fixed [yaw, pitch, roll], shape (3,); ValueError if any angle is bounded."""
+        if not self.is_orientation_fixed:
+            raise ValueError("this configuration has bounded angles; choose one of angle_candidates()")
+        return self.euler_zyx_lower
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ConcreteTask:
+    """One trial of a task: every position drawn, bounded angles still free."""
+
+    name: str
+    critical_configurations: tuple
+    X_WB: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    X_tool0_E: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    obstacles: tuple = ()
+    safety_shells: tuple = ()
+    path_constraints: tuple = ()
+    seed: int | None = None
+    variable_values: dict = dataclasses.field(default_factory=dict)  # name -> drawn value
+    file: str | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "critical_configurations", tuple(self.critical_configurations))
+
+    def __len__(self):
+        return len(self.critical_configurations)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Positions of con_1 .. con_n, shape (n, 3)."""
+        return np.array([con.p for con in self.critical_configurations])
+
+    @classmethod
+    def from_fixed(cls, name, positions, euler_zyx, **kwargs):
+        """A task with every angle fixed (for example a random training task).
+
+        Parameters
+        ----------
+        name : str
+        positions : array-like, shape (n, 3)
+        euler_zyx : array-like, shape (n, 3)
+            [yaw, pitch, roll] per configuration, radians.
+        **kwargs
+            Other :class:`ConcreteTask` fields (``X_WB``, ``obstacles``, ...).
+        """
+        positions = np.asarray(positions, dtype=float)
+        euler_zyx = np.asarray(euler_zyx, dtype=float)
+        return cls(
+            name=name,
+            critical_configurations=tuple(
+                ConcreteCriticalConfiguration.fixed(p, e) for p, e in zip(positions, euler_zyx)
+            ),
+            **kwargs,
+        )
+
+
+# ------------------------------------------------------------------------------ angles
+
+
+def angle_grid(lower, upper, step_rad):
+    """Samples of a bounded angle: ``lower`` to ``upper``, both included, evenly spaced
+    at most ``step_rad`` apart. A fixed angle (``lower == upper``) gives one sample.
+
+    Returns
+    -------
+    angles : array, shape (k,)
+    """
+    span = float(upper) - float(lower)
+    if span <= 0.0:
+        return np.array([float(lower)])
+    count = int(math.ceil(span / step_rad - 1e-9)) + 1
+    return np.linspace(float(lower), float(upper), count)
+
+
+def angle_candidates(con):
+    """Every [yaw, pitch, roll] the planner may choose for ``con`` (SPEC 4).
+
+    Fixed angles keep their value; each bounded one runs over :func:`angle_grid` with
+    ``con.angle_grid_deg``; the result is their Cartesian product (yaw slowest).
+    A full turn such as ``[-pi, pi]`` includes both ends (the same rotation).
+
+    Parameters
+    ----------
+    con : ConcreteCriticalConfiguration
+
+    Returns
+    -------
+    candidates : array, shape (k, 3)
+        Rows are (yaw, pitch, roll) in radians; iterate to get triples.
+    """
+    step = math.radians(con.angle_grid_deg)
+    axes = [angle_grid(lo, hi, step) for lo, hi in zip(con.euler_zyx_lower, con.euler_zyx_upper)]
+    return np.array(list(itertools.product(*axes)), dtype=float).reshape(-1, 3)
+
+
+# ----------------------------------------------------------------------------- loading
+
+
+def load_task_spec(path):
+    """Reads a task file into a :class:`TaskSpec` (structure checked, values not yet).
+
+    Raises
+    ------
+    InputError
+        Unreadable file, invalid YAML, a duplicated or unknown key, a value of the
+        wrong kind; naming the file and the field.
+    """
+    path = Path(path)
+    return task_spec_from_text(read_text(path), file=path)
+
+
+def task_spec_from_text(text, *, file=None):
+    """Like :func:`load_task_spec` for YAML text; ``file`` is named in errors."""
+    return load_spec(text, TaskSpec, file=file, document="the task file", keys="task keys")
+
+
+def _interval(values, *, file, field, convert, context=""):
+    if len(values) != 2:
+        raise InputError(
+            f"{context}expected [lower, upper], got {len(values)} values", file=file, field=field
+        )
+    lower = convert(values[0], file=file, field=f"{field}[0]")
+    upper = convert(values[1], file=file, field=f"{field}[1]")
+    if lower > upper:
+        raise InputError(f"{context}lower {lower:g} > upper {upper:g}", file=file, field=field)
+    return lower, upper
+
+
+_VARIABLE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def _box(spec, *, file, field):
+    if not spec.name:
+        raise InputError("a box needs a non-empty name", file=file, field=f"{field}.name")
+    centre = vector(spec.centre, 3, file=file, field=f"{field}.centre", convert=finite)
+    size = vector(spec.size, 3, file=file, field=f"{field}.size", convert=finite)
+    for axis in range(3):
+        if not size[axis] > 0.0:
+            raise InputError(
+                f"box edge lengths must be > 0, got {size[axis]:g}", file=file, field=f"{field}.size[{axis}]"
+            )
+    return Box(name=spec.name, centre=centre, size=size)
+
+
+def task_from_spec(spec, *, file=None):
+    """Checks the values of a :class:`TaskSpec` and returns the :class:`Task`.
+
+    Raises
+    ------
+    InputError
+        Non-finite numbers, ``lower > upper``, fewer than 2 critical configurations,
+        unknown variables, non-positive box sizes, constraint numbers out of range.
+    """
+    name = spec.name or (Path(file).stem if file is not None else "task")
+    X_WB = pose(spec.X_WB, file=file, field="X_WB")
+    X_tool0_E = pose(spec.X_tool0_E, file=file, field="X_tool0_E")
+    grid = finite(spec.angle_grid_deg, file=file, field="angle_grid_deg")
+    if not 0.0 < grid <= 360.0:
+        raise InputError(f"must be in (0, 360] degrees, got {grid:g}", file=file, field="angle_grid_deg")
+
+    variables = {}
+    for variable, values in spec.variables.items():
+        field = f"variables.{variable}"
+        if not _VARIABLE_NAME.match(variable) or variable == "pi":
+            raise InputError(
+                f"{variable!r} is not a variable name (letters, digits, '_'; not 'pi')", file=file, field=field
+            )
+        variables[variable] = _interval(values, file=file, field=field, convert=finite)
+
+    cons = []
+    specs = spec.critical_configurations
+    if len(specs) < MIN_CRITICAL_CONFIGURATIONS:
+        raise InputError(
+            f"a task needs at least {MIN_CRITICAL_CONFIGURATIONS} critical configurations, got {len(specs)}",
+            file=file,
+            field="critical_configurations",
+        )
+    for index, con_spec in enumerate(specs):
+        base = f"critical_configurations[{index}]"
+        context = f"con_{index + 1}: "
+        if len(con_spec.p) != 3:
+            raise InputError(f"{context}expected [x, y, z], got {len(con_spec.p)} values", file=file, field=f"{base}.p")
+        if len(con_spec.euler_zyx) != 3:
+            raise InputError(
+                f"{context}expected [yaw, pitch, roll], got {len(con_spec.euler_zyx)} values",
+                file=file,
+                field=f"{base}.euler_zyx",
+            )
+        p_lower, p_upper, p_variables = [], [], []
+        for axis, entry in enumerate(con_spec.p):
+            field = f"{base}.p[{axis}]"
+            variable = None
+            if isinstance(entry, list):
+                lower, upper = _interval(entry, file=file, field=field, convert=finite, context=context)
+            elif isinstance(entry, str) and _VARIABLE_NAME.match(entry) and entry not in ("nan", "inf"):
+                if entry not in variables:
+                    known = ", ".join(variables) or "none"
+                    raise InputError(
+                        f"{context}unknown variable {entry!r} (variables: {known})", file=file, field=field
+                    )
+                variable = entry
+                lower, upper = variables[entry]
+            else:
+                lower = upper = finite(entry, file=file, field=field)
+            p_lower.append(lower)
+            p_upper.append(upper)
+            p_variables.append(variable)
+        euler_lower, euler_upper = [], []
+        for axis, entry in enumerate(con_spec.euler_zyx):
+            field = f"{base}.euler_zyx[{axis}]"
+            if isinstance(entry, list):
+                lower, upper = _interval(entry, file=file, field=field, convert=angle, context=context)
+            else:
+                if isinstance(entry, str) and entry in variables:
+                    raise InputError(
+                        f"{context}variables are for positions; write a bounded angle as "
+                        "[lower, upper] (the planner chooses it per configuration)",
+                        file=file,
+                        field=field,
+                    )
+                lower = upper = angle(entry, file=file, field=field)
+            euler_lower.append(lower)
+            euler_upper.append(upper)
+        cons.append(
+            CriticalConfiguration(
+                p_lower=p_lower,
+                p_upper=p_upper,
+                p_variables=p_variables,
+                euler_zyx_lower=euler_lower,
+                euler_zyx_upper=euler_upper,
+            )
+        )
+
+    boxes = {}
+    obstacles = tuple(_box(b, file=file, field=f"obstacles[{i}]") for i, b in enumerate(spec.obstacles))
+    shells = tuple(_box(b, file=file, field=f"safety_shells[{i}]") for i, b in enumerate(spec.safety_shells))
+    for group, items in (("obstacles", obstacles), ("safety_shells", shells)):
+        for index, box in enumerate(items):
+            if box.name in boxes:
+                raise InputError(
+                    f"box name {box.name!r} is used by {boxes[box.name]} already", file=file, field=f"{group}[{index}].name"
+                )
+            boxes[box.name] = f"{group}[{index}]"
+
+    constraints = []
+    for index, constraint in enumerate(spec.path_constraints):
+        base = f"path_constraints[{index}]"
+        if constraint.kind not in PATH_CONSTRAINT_KINDS:
+            raise InputError(
+                f"unknown kind {constraint.kind!r} (known: {', '.join(PATH_CONSTRAINT_KINDS)})",
+                file=file,
+                field=f"{base}.kind",
+            )
+        if len(constraint.between) != 2:
+            raise InputError(
+                f"expected [j, k] (critical configuration numbers), got {len(constraint.between)} values",
+                file=file,
+                field=f"{base}.between",
+            )
+        first, last = (int(v) for v in constraint.between)
+        if not 1 <= first < last <= len(cons):
+            raise InputError(
+                f"[{first}, {last}] must satisfy 1 <= j < k <= {len(cons)} (con numbers start at 1)",
+                file=file,
+                field=f"{base}.between",
+            )
+        euler = vector(constraint.euler_zyx, 3, file=file, field=f"{base}.euler_zyx", convert=angle)
+        tolerance = finite(constraint.tolerance_deg, file=file, field=f"{base}.tolerance_deg")
+        if not 0.0 < tolerance <= 180.0:
+            raise InputError(
+                f"must be in (0, 180] degrees, got {tolerance:g}", file=file, field=f"{base}.tolerance_deg"
+            )
+        constraints.append(
+            PathConstraint(
+                kind=constraint.kind,
+                con_from=first,
+                con_to=last,
+                euler_zyx=euler,
+                tolerance_rad=math.radians(tolerance),
+            )
+        )
+
+    return Task(
+        name=name,
+        critical_configurations=tuple(cons),
+        X_WB=X_WB,
+        X_tool0_E=X_tool0_E,
+        angle_grid_deg=grid,
+        variables=variables,
+        obstacles=obstacles,
+        safety_shells=shells,
+        path_constraints=tuple(constraints),
+        description=spec.description,
+        file=None if file is None else str(file),
+    )
+
+
+def load_task(path):
+    """Reads and checks a task file.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    task : Task
+
+    Raises
+    ------
+    InputError
+        Naming the file and the field.
+    """
+    return task_from_spec(load_task_spec(path), file=Path(path))
+
+
+# ------------------------------------------------------------------------------ trials
+
+
+def draw_trial(task, seed):
+    """Draws one concrete trial of a task (the paper runs 20 per task).
+
+    Variables are drawn first, uniformly in their ranges, in sorted name order; then
+    each inline position range, con by con, x before y before z. Fixed values draw
+    nothing. Bounded angles stay bounded (the planner chooses them).
+
+    Parameters
+    ----------
+    task : Task
+    seed : int
+        Non-negative; the same seed gives the same trial.
+
+    Returns
+    -------
+    trial : ConcreteTask
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"expected a non-negative integer, got {seed!r}", field="seed")
+    rng = np.random.default_rng(int(seed))
+    values = {name: float(rng.uniform(*task.variables[name])) for name in sorted(task.variables)}
+    cons = []
+    for con in task.critical_configurations:
+        p = np.empty(3)
+        for axis in range(3):
+            variable = con.p_variables[axis]
+            lower, upper = con.p_lower[axis], con.p_upper[axis]
+            if variable is not None:
+                p[axis] = values[variable]
+            elif lower == upper:
+                p[axis] = lower
+            else:
+                p[axis] = rng.uniform(lower, upper)
+        cons.append(
+            ConcreteCriticalConfiguration(
+                p=p,
+                euler_zyx_lower=con.euler_zyx_lower,
+                euler_zyx_upper=con.euler_zyx_upper,
+                angle_grid_deg=task.angle_grid_deg,
+            )
+        )
+    return ConcreteTask(
+        name=task.name,
+        critical_configurations=tuple(cons),
+        X_WB=task.X_WB,
+        X_tool0_E=task.X_tool0_E,
+        obstacles=task.obstacles,
+        safety_shells=task.safety_shells,
+        path_constraints=task.path_constraints,
+        seed=int(seed),
+        variable_values=values,
+        file=task.file,
+    )

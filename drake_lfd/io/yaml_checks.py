@@ -1,0 +1,354 @@
+"""Checks for user YAML files read with pydrake's ``yaml_load_typed`` into dataclasses.
+
+Task files (``tasks.py``) and guidance scripts (``kinesthetic.py``) are YAML loaded with
+``pydrake.common.yaml.yaml_load_typed`` into ``*Spec`` dataclasses. Run alone, that
+function names only the leaf of a bad value, and PyYAML silently keeps the last of two
+equal keys. So :func:`load_spec` first reads the raw YAML (refusing duplicated keys)
+and checks it against the Spec types (:func:`check_schema`), and only then calls
+``yaml_load_typed``. :func:`finite`, :func:`angle`, :func:`vector` and :func:`pose`
+then convert and check the values. Every problem becomes one
+:class:`~drake_lfd.core.errors.InputError` that names the file and the field
+(``waypoints[2].euler_zyx[0]``, list indices from 0).
+
+Conventions of the Spec dataclasses: a field made with :func:`required` must be
+present; a field's ``metadata["expected"]`` says in words what a union field accepts;
+angles can be written as numbers, as multiples of pi or in degrees
+(:func:`angle_from_text`); orientations are ``euler_zyx: [yaw, pitch, roll]``,
+``R = Rz(yaw) Ry(pitch) Rx(roll)`` (SPEC 2, :func:`rigid_transform_from_euler_zyx`).
+
+Not for: what a file means (its own module checks that: ranges, ordering, names), nor
+for logs and libraries (``demonstrations.py``, ``library.py``).
+"""
+
+# No ``from __future__ import annotations``: :data:`Scalar` is used in the Spec
+# dataclasses' annotations, and yaml_load_typed reads those as types, not as strings.
+import dataclasses
+import math
+import re
+import types
+import typing
+from pathlib import Path
+from typing import Union
+
+import numpy as np
+import yaml
+from pydrake.common.yaml import yaml_load_typed
+from pydrake.math import RigidTransform, RollPitchYaw
+
+from drake_lfd.core.errors import InputError
+
+# One number-like token: a YAML number, or a string such as "-pi/2", "90deg", "1e-3".
+Scalar = Union[float, int, str]
+
+_DESCRIPTIONS = {Scalar: "a number"}
+
+
+def required(factory):
+    """A Spec dataclass field that :func:`check_schema` requires in the file."""
+    return dataclasses.field(default_factory=factory, metadata={"required": True})
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+class UniqueKeyLoader(yaml.SafeLoader):
+    """A SafeLoader that refuses a key written twice in one mapping (PyYAML silently
+    keeps the last one) and says where."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = self.construct_object(key_node, deep=deep)
+            try:
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(
+                        None,
+                        None,
+                        f"key {key!r} appears twice in one mapping (first on line {seen[key] + 1})",
+                        key_node.start_mark,
+                    )
+                seen[key] = key_node.start_mark.line
+            except TypeError:
+                pass  # unhashable keys are reported by the schema check
+        return super().construct_mapping(node, deep=deep)
+
+
+def yaml_error(error, file):
+    """The :class:`InputError` for a ``yaml.YAMLError``, naming the line and column."""
+    mark = getattr(error, "problem_mark", None)
+    problem = getattr(error, "problem", None) or str(error)
+    field = None if mark is None else f"line {mark.line + 1} column {mark.column + 1}"
+    if "could not determine a constructor" in problem:
+        problem = "YAML tags (!Name) are not used in task files"
+    return InputError(f"not valid YAML: {problem}", file=file, field=field)
+
+
+def read_text(path, *, directory_problem=None):
+    """The text of the user file ``path`` (UTF-8).
+
+    Raises
+    ------
+    InputError
+        The file is missing or unreadable. If ``directory_problem`` is given, it is the
+        message when ``path`` is a directory; otherwise the generic "cannot read" is used.
+    """
+    path = Path(path)
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("no such file", file=path) from None
+    except IsADirectoryError as error:
+        problem = directory_problem or f"cannot read: {error}"
+        raise InputError(problem, file=path) from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(f"cannot read: {error}", file=path) from None
+
+
+def load_spec(text, schema, *, file, document, keys):
+    """Loads YAML text into the Spec dataclass ``schema``, checking its structure first.
+
+    Root keys starting with ``_`` are ignored, as in pydrake's ``yaml_load`` (they hold
+    anchors for reuse).
+
+    Parameters
+    ----------
+    text : str
+    schema : dataclass type
+    file : str or Path or None
+        Named in errors.
+    document, keys : str
+        Used in the messages "``{document}`` is empty" and "expected a mapping of
+        ``{keys}``", for example ``"the task file"`` and ``"task keys"``.
+
+    Raises
+    ------
+    InputError
+        Invalid YAML, a duplicated or unknown key, or a value of the wrong kind.
+    """
+    try:
+        raw = yaml.load(text, Loader=UniqueKeyLoader)
+    except yaml.YAMLError as error:
+        raise yaml_error(error, file) from None
+    if raw is None:
+        raise InputError(f"{document} is empty", file=file)
+    if not isinstance(raw, dict):
+        raise InputError(f"expected a mapping of {keys}, got {kind_of(raw)}", file=file)
+    raw = {key: value for key, value in raw.items() if not (isinstance(key, str) and key.startswith("_"))}
+    check_schema(raw, schema, "", file)
+    try:
+        return yaml_load_typed(schema=schema, data=text)
+    except Exception as error:  # anything left is still the file's fault
+        raise InputError(f"cannot load: {error}", file=file) from None
+
+
+# ------------------------------------------------------------------------------ schema
+
+
+def kind_of(value):
+    """A short description of a raw YAML value for use in error messages."""
+    if value is None:
+        return "nothing (an empty value)"
+    if isinstance(value, bool):
+        return f"{str(value).lower()} (YAML reads yes/no/on/off/true/false as booleans)"
+    if isinstance(value, dict):
+        return "a mapping"
+    if isinstance(value, list):
+        return "a list"
+    return repr(value)
+
+
+def _describe(schema):
+    if schema in _DESCRIPTIONS:
+        return _DESCRIPTIONS[schema]
+    if schema is float:
+        return "a number"
+    if schema is int:
+        return "an integer"
+    if schema is str:
+        return "a string"
+    origin = typing.get_origin(schema)
+    if origin is list:
+        return "a list"
+    if origin in (Union, types.UnionType):
+        return " or ".join(dict.fromkeys(_describe(alternative) for alternative in typing.get_args(schema)))
+    return "a mapping"
+
+
+def _matches_scalar(value, schema):
+    if isinstance(value, bool) or value is None:
+        return False
+    if schema is float:
+        if isinstance(value, (int, float)):
+            return True
+        if isinstance(value, str):  # PyYAML reads 1e-3 (no dot) as a string
+            try:
+                float(value)
+            except ValueError:
+                return False
+            return True
+        return False
+    if schema is int:
+        return isinstance(value, int) or (isinstance(value, float) and value.is_integer())
+    if schema is str:
+        return isinstance(value, str)
+    raise TypeError(schema)
+
+
+def _join(path, key):
+    return f"{path}.{key}" if path else str(key)
+
+
+def check_schema(value, schema, path, file, expected=None):
+    """Checks raw YAML data against a Spec type, so that errors name the exact field.
+
+    Run alone, ``yaml_load_typed`` names only the leaf, and it iterates over mappings
+    given where a list is expected. ``path`` is the field's name so far (``""`` at the
+    root); ``expected`` says in words what a union accepts (from the field's metadata).
+
+    Raises
+    ------
+    InputError
+        A value of the wrong kind, an unknown key, or a missing :func:`required` field.
+    """
+    if schema in (float, int, str):
+        if not _matches_scalar(value, schema):
+            raise InputError(f"expected {_describe(schema)}, got {kind_of(value)}", file=file, field=path)
+        return
+    origin = typing.get_origin(schema)
+    if origin in (Union, types.UnionType):
+        alternatives = typing.get_args(schema)
+        if isinstance(value, list):
+            for alternative in alternatives:
+                if typing.get_origin(alternative) is list:
+                    check_schema(value, alternative, path, file)
+                    return
+        elif any(
+            alternative in (float, int, str) and _matches_scalar(value, alternative)
+            for alternative in alternatives
+        ):
+            return
+        raise InputError(f"expected {expected or _describe(schema)}, got {kind_of(value)}", file=file, field=path)
+    if origin is list:
+        if not isinstance(value, list):
+            raise InputError(f"expected a list, got {kind_of(value)}", file=file, field=path)
+        (item_schema,) = typing.get_args(schema)
+        for index, item in enumerate(value):
+            check_schema(item, item_schema, f"{path}[{index}]", file, expected)
+        return
+    if origin is dict:
+        if not isinstance(value, dict):
+            raise InputError(f"expected a mapping, got {kind_of(value)}", file=file, field=path)
+        _, item_schema = typing.get_args(schema)
+        for key, item in value.items():
+            if not isinstance(key, str):
+                raise InputError(
+                    f"key {kind_of(key)} is not a name; quote it", file=file, field=path
+                )
+            check_schema(item, item_schema, _join(path, key), file)
+        return
+    if dataclasses.is_dataclass(schema):
+        if not isinstance(value, dict):
+            raise InputError(f"expected a mapping, got {kind_of(value)}", file=file, field=path or None)
+        fields = {field.name: field for field in dataclasses.fields(schema)}
+        hints = typing.get_type_hints(schema)
+        for key in value:
+            if not isinstance(key, str):
+                raise InputError(f"key {kind_of(key)} is not a name; quote it", file=file, field=path or None)
+            if key not in fields:
+                allowed = ", ".join(fields)
+                problem = f"unknown key {key!r} (allowed: {allowed})"
+                if key == "_tag":
+                    problem = "YAML tags (!Name) are not used in task files"
+                raise InputError(problem, file=file, field=_join(path, key))
+        for name, field in fields.items():
+            if name not in value:
+                if field.metadata.get("required"):
+                    raise InputError("missing", file=file, field=_join(path, name))
+                continue
+            check_schema(value[name], hints[name], _join(path, name), file, field.metadata.get("expected"))
+        return
+    raise TypeError(f"unsupported schema {schema!r}")
+
+
+# ------------------------------------------------------------------------------ values
+
+_PI_EXPRESSION = re.compile(
+    r"^([+-]?)\s*(\d+(?:\.\d*)?|\.\d+)?\s*\*?\s*pi\s*(?:/\s*(\d+(?:\.\d*)?|\.\d+))?$"
+)
+_DEGREES = re.compile(r"^([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*deg$")
+
+
+def angle_from_text(text):
+    """The angle written in ``text``, in radians, or None if the text is not an angle.
+
+    Accepts plain numbers (``"1.5"``), multiples of pi (``"pi"``, ``"-pi/2"``,
+    ``"3*pi/4"``, ``"0.5pi"``) and degrees (``"-90deg"``).
+    """
+    text = text.strip()
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    match = _DEGREES.match(text)
+    if match:
+        return math.radians(float(match.group(1)))
+    match = _PI_EXPRESSION.match(text)
+    if match:
+        sign, coefficient, divisor = match.groups()
+        value = math.pi * (float(coefficient) if coefficient else 1.0)
+        if divisor is not None:
+            if float(divisor) == 0.0:
+                return None
+            value /= float(divisor)
+        return -value if sign == "-" else value
+    return None
+
+
+def rigid_transform_from_euler_zyx(p, euler_zyx):
+    """The ``RigidTransform`` of a position and [yaw, pitch, roll] (``Rz Ry Rx``, SPEC 2)."""
+    yaw, pitch, roll = (float(v) for v in euler_zyx)
+    return RigidTransform(RollPitchYaw(roll, pitch, yaw), np.asarray(p, dtype=float))
+
+
+def finite(value, *, file, field, what="a number"):
+    """A finite float from a checked scalar (a number or a numeric string)."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"expected {what}, got {kind_of(value)}", file=file, field=field) from None
+    if not math.isfinite(number):
+        raise InputError(f"{value!r} is not a finite number", file=file, field=field)
+    return number
+
+
+def angle(value, *, file, field):
+    """Radians from a checked scalar: a number or any spelling of :func:`angle_from_text`."""
+    if isinstance(value, str):
+        number = angle_from_text(value)
+        if number is None:
+            raise InputError(
+                f"{value!r} is not an angle (write radians, a multiple of pi such as -pi/2, "
+                "or degrees such as -90deg)",
+                file=file,
+                field=field,
+            )
+        value = number
+    return finite(value, file=file, field=field)
+
+
+def vector(values, count, *, file, field, convert):
+    """An array, shape (count,), of ``convert(value, file=, field=)`` for each entry;
+    the entries are named ``field[i]`` in errors."""
+    if len(values) != count:
+        raise InputError(f"expected {count} values, got {len(values)}", file=file, field=field)
+    return np.array([convert(v, file=file, field=f"{field}[{i}]") for i, v in enumerate(values)])
+
+
+def pose(spec, *, file, field):
+    """The ``RigidTransform`` of a spec with ``p`` (metres) and ``euler_zyx`` (angles),
+    such as ``PoseSpec``. Errors name ``field.p[i]`` or ``field.euler_zyx[i]``."""
+    p = vector(spec.p, 3, file=file, field=f"{field}.p", convert=finite)
+    euler = vector(spec.euler_zyx, 3, file=file, field=f"{field}.euler_zyx", convert=angle)
+    return rigid_transform_from_euler_zyx(p, euler)

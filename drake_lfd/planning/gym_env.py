@@ -1,0 +1,96 @@
+"""The composition MDP as a ``gymnasium.Env`` (optional extra ``drake-lfd[gym]``).
+
+For users who want to try other RL algorithms on the paper's problem. One episode plans
+one task drawn at reset: half the time a Section 6.2 random task, half the time a task
+chained from library demonstrations (plannable by construction), so an agent sees both
+dead ends and complete compositions.
+
+* Action ``a = demo * max_span + (span - 1)`` is the paper's Eq. 29-30: demonstration
+  ``demo`` covers the segment up to ``con_(j + span)``; bounded angles of the span's end
+  take the least-cost legal value. An action that is not semantically similar (or runs
+  past the last con) gets ``illegal_penalty`` and ends the episode (Eq. 31's minus
+  infinity, Algorithm 1's ``Break``).
+* Reward: minus the allocation's total alpha (Eq. 31).
+* Observation (float32, 10 values): segments remaining / 3, then the relative motion to
+  the next critical configuration in the current one's frame (rotation quaternion w >= 0,
+  unit translation direction, translation length in metres clipped to 2), and the
+  fraction of the task done.
+
+Not for: drake-lfd's own training (``q_learning.py`` uses the tabular afterstate form).
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+
+from drake_lfd.planning.composition import CompositionProblem
+from drake_lfd.core.dual_quaternion import dual_quaternion_canonical, dual_quaternion_relative, translation_from_dual_quaternion
+from drake_lfd.core.features import Feature
+from drake_lfd.planning.planner import build_problem
+from drake_lfd.planning.random_tasks import chained_task, random_training_task
+
+
+class CompositionEnv(gymnasium.Env):
+    """Gymnasium environment of the composition MDP (SPEC 7)."""
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, features: Mapping[str, Feature], *, num_cons: int = 4, max_span: int = 3,
+                 illegal_penalty: float = -10.0):
+        self.features = dict(features)
+        self.num_cons = int(num_cons)
+        self.max_span = int(max_span)
+        self.illegal_penalty = float(illegal_penalty)
+        self.action_space = spaces.Discrete(len(self.features) * self.max_span)
+        low = np.array([0, -1, -1, -1, -1, -1, -1, -1, 0, 0], dtype=np.float32)
+        high = np.array([1, 1, 1, 1, 1, 1, 1, 1, 2, 1], dtype=np.float32)
+        self.observation_space = spaces.Box(low=low, high=high, dtype=np.float32)
+        self.problem: CompositionProblem | None = None
+        self.state = (0, 0)
+
+    def _observation(self) -> np.ndarray:
+        j, a = self.state
+        n = self.problem.num_cons
+        observation = np.zeros(10, dtype=np.float32)
+        observation[0] = min(n - 1 - j, 3) / 3.0
+        observation[9] = j / (n - 1)
+        if j < n - 1:
+            nxt = self.problem.candidate_poses[j + 1]
+            relative = dual_quaternion_canonical(
+                dual_quaternion_relative(self.problem.candidate_poses[j][a], nxt[len(nxt) // 2]))
+            t = translation_from_dual_quaternion(relative)
+            length = float(np.linalg.norm(t))
+            observation[1:5] = relative[:4]
+            observation[5:8] = t / length if length > 1e-9 else 0.0
+            observation[8] = min(length, 2.0)
+        return np.clip(observation, self.observation_space.low, self.observation_space.high)
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        if self.np_random.random() < 0.5:
+            task = random_training_task(self.np_random, self.num_cons)
+        else:
+            task, _ = chained_task(self.np_random, self.features, self.num_cons)
+        self.problem = build_problem(task, self.features, max_span=self.max_span)
+        self.state = (0, 0)
+        return self._observation(), {"num_cons": self.problem.num_cons}
+
+    def step(self, action):
+        action = int(action)
+        if not self.action_space.contains(action):
+            raise ValueError(f"action {action} is outside {self.action_space}")
+        demo, span = divmod(action, self.max_span)
+        j, a = self.state
+        k = j + span + 1
+        matrix = self.problem.cost.get((j, k, demo))
+        row = None if matrix is None else matrix[a]
+        if row is None or not np.isfinite(row).any():
+            return self._observation(), self.illegal_penalty, True, False, {"legal": False}
+        a_k = int(np.argmin(row))
+        self.state = (k, a_k)
+        done = k == self.problem.num_cons - 1
+        return self._observation(), float(-row[a_k]), done, False, {"legal": True}

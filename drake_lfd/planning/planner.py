@@ -1,0 +1,329 @@
+"""From a concrete task and a library to an SE(3) motion plan or a demonstration request.
+
+Ties the method together (Algorithm 2 and Section 3.4): build the composition problem
+(legal actions from similarity), choose a composition with the exact planner or the
+Q-policy, map each chosen demonstration onto its span (Eq. 22-25 plus the exact
+correction), join the spans, and attach times (``timing.py``). Joins are continuous in
+pose; the timing law brings the tool to rest at every critical configuration, so velocity
+is continuous too (zero at joins). When no composition exists, report every uncovered
+segment and the relative motion it needs (SPEC 7).
+
+Not for: reading files (``tasks.py``, ``library.py``) or running the robot.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Mapping
+
+import numpy as np
+
+from drake_lfd.planning.composition import CompositionProblem, Step
+from drake_lfd.core.dual_quaternion import (
+    axis_angle_from_quaternion,
+    matrices_from_dual_quaternion,
+    dual_quaternion_from_euler_zyx,
+    dual_quaternion_relative,
+    translation_from_dual_quaternion,
+)
+from drake_lfd.planning.exact_planner import plan_exact
+from drake_lfd.core.features import Feature
+from drake_lfd.core.mapping import map_segment
+from drake_lfd.planning.q_learning import DEFAULT_REFINE_EPISODES, QPolicy, plan_q
+from drake_lfd.core.similarity import Tolerances
+from drake_lfd.io.task_files import ConcreteTask, angle_candidates
+from drake_lfd.core.timing import (
+    DEFAULT_MAX_ANGULAR_SPEED_RAD_S,
+    DEFAULT_MAX_SPEED_M_S,
+    TimedPlan,
+    time_plan,
+)
+
+PLANNERS = ("exact", "q")
+
+
+@dataclasses.dataclass(frozen=True)
+class ComposedStep:
+    demo: str
+    con_from: int  # 1-based
+    con_to: int  # 1-based
+    cost: float
+
+
+@dataclasses.dataclass(frozen=True)
+class UncoveredSegment:
+    """A segment no demonstration covers, and the relative motion ``D_from* (x) D_to``
+    it needs, expressed in con_from's frame."""
+
+    con_from: int  # 1-based
+    con_to: int
+    axis: np.ndarray  # (3,)
+    angle_rad: float
+    translation_m: np.ndarray  # (3,)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class PlanResult:
+    """Outcome of planning one concrete task.
+
+    ``status`` is ``"planned"`` or ``"demonstration_requested"``. For a plan,
+    ``euler_zyx`` (n, 3) holds the concrete angles chosen for every con, ``timed`` the
+    timed SE(3) poses of E in W. ``greedy_completed`` / ``fallback`` describe the
+    Q-planner (``fallback`` is ``"exact"`` when the greedy walk dead-ended).
+    """
+
+    status: str
+    planner: str
+    task: ConcreteTask
+    euler_zyx: np.ndarray
+    composition: tuple[ComposedStep, ...] = ()
+    total_cost: float = float("nan")
+    timed: TimedPlan | None = None
+    max_correction_position_m: float = 0.0
+    max_correction_rotation_rad: float = 0.0
+    uncovered: tuple[UncoveredSegment, ...] = ()
+    greedy_completed: bool | None = None
+    fallback: str | None = None
+    refine_episodes: int = 0
+
+    @property
+    def planned(self) -> bool:
+        return self.status == "planned"
+
+
+def task_candidates(task: ConcreteTask) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Candidate angles (g_j, 3) and poses (g_j, 8) of every critical configuration."""
+    angles = [angle_candidates(con) for con in task.critical_configurations]
+    poses = [
+        dual_quaternion_from_euler_zyx(np.broadcast_to(con.p, a.shape), a)
+        for con, a in zip(task.critical_configurations, angles)
+    ]
+    return angles, poses
+
+
+def build_problem(
+    task: ConcreteTask,
+    features: Mapping[str, Feature],
+    tolerances: Tolerances = Tolerances(),
+    max_span: int | None = None,
+) -> CompositionProblem:
+    _, poses = task_candidates(task)
+    return CompositionProblem(poses, list(features.values()), tolerances, max_span)
+
+
+def uncovered_segments(problem: CompositionProblem) -> list[UncoveredSegment]:
+    """Segments to ask a demonstration for, when no composition covers the task.
+
+    Every gap con_g -> con_(g+1) that no legal action spans is reported. If every gap is
+    spanned by something but the spans do not chain (their angle choices disagree), the
+    gap after the furthest critical configuration reachable from con_1 is reported.
+    Bounded angles take the reachable candidate (or the middle of their grid).
+    """
+    covered = problem.covered_gaps()
+    reachable = _reachable_candidates(problem)
+    gaps = [g for g in range(problem.num_cons - 1) if not covered[g]]
+    if not gaps:
+        furthest = max(j for j in range(problem.num_cons) if reachable[j])
+        gaps = [min(furthest, problem.num_cons - 2)]
+    segments = []
+    for g in gaps:
+        from_candidates = reachable[g] or [problem.num_candidates[g] // 2]
+        D_from = problem.candidate_poses[g][from_candidates[0]]
+        D_to = problem.candidate_poses[g + 1][problem.num_candidates[g + 1] // 2]
+        relative = dual_quaternion_relative(D_from, D_to)
+        axis, angle = axis_angle_from_quaternion(relative[:4])
+        segments.append(
+            UncoveredSegment(g + 1, g + 2, axis, float(angle), translation_from_dual_quaternion(relative))
+        )
+    return segments
+
+
+def _reachable_candidates(problem: CompositionProblem) -> list[list[int]]:
+    reachable = [set() for _ in range(problem.num_cons)]
+    reachable[0] = set(range(problem.num_candidates[0]))
+    for j in range(problem.num_cons - 1):
+        for a in sorted(reachable[j]):
+            for step in problem.actions_from(j, a):
+                reachable[step.k].add(step.a_k)
+    return [sorted(r) for r in reachable]
+
+
+# The flange and the wrist behind it (UR5e: wrist_2's axis is d6 = 0.0996 m behind the
+# flange along tool0's -z), plus the room the links take (wrist housing radius 0.045 m).
+WRIST_BEHIND_FLANGE_M = 0.0996
+LINK_RADIUS_M = 0.05
+
+
+def tool_clearance_points(X_tool0_E) -> np.ndarray:
+    """Points fixed in E to keep clear: E itself, the flange, the wrist behind it,
+    shape (3, 3), expressed in E."""
+    X_E_tool0 = X_tool0_E.inverse()
+    return np.array([
+        [0.0, 0.0, 0.0],
+        X_E_tool0.translation(),
+        X_E_tool0.multiply(np.array([0.0, 0.0, -WRIST_BEHIND_FLANGE_M])),
+    ])
+
+
+TWIST_CANDIDATES_RAD = np.radians(np.arange(0.0, 360.0, 30.0))
+# A mapped path this far from every keep-out box is clear; among clear twists the one
+# closest to the paper's shortest alignment (twist 0) is kept.
+CLEARANCE_GOAL_M = 0.05 + LINK_RADIUS_M
+
+
+def box_signed_distance(points: np.ndarray, centre: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Signed distance of points (n, 3) to an axis-aligned box (negative inside), (n,)."""
+    q = np.abs(points - centre) - np.asarray(size) / 2.0
+    outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+    return outside + np.minimum(q.max(axis=1), 0.0)
+
+
+def _clearances(poses: np.ndarray, keep_out=(), floor_z: float | None = None,
+                points_E: np.ndarray | None = None) -> np.ndarray:
+    """Distance of every tracked point along the path to the nearest keep-out box or the
+    floor, shape (n * k,): of the origins of ``poses`` (n, 8), or of ``points_E`` (k, 3),
+    points fixed in E such as the flange and the wrist behind it."""
+    if points_E is None:
+        p = translation_from_dual_quaternion(poses)
+    else:
+        T = matrices_from_dual_quaternion(poses)
+        p = (np.einsum("nij,kj->nki", T[:, :3, :3], np.asarray(points_E)) + T[:, None, :3, 3]).reshape(-1, 3)
+    distance = np.full(len(p), np.inf)
+    for box in keep_out:
+        distance = np.minimum(distance, box_signed_distance(p, box.centre, box.size))
+    if floor_z is not None:
+        distance = np.minimum(distance, p[:, 2] - floor_z)
+    return distance
+
+
+def path_clearance(poses: np.ndarray, keep_out=(), floor_z: float | None = None,
+                   points_E: np.ndarray | None = None) -> float:
+    """Least distance of the tool path to the keep-out boxes and the floor (inf with
+    neither); see :func:`_clearances`."""
+    return float(np.min(_clearances(poses, keep_out, floor_z, points_E), initial=np.inf))
+
+
+def map_span_clear(feature_poses, allocation, task_poses, keep_out=(), floor_z=None, points_E=None):
+    """Maps a demo onto a span, choosing the free twist about the task's first translation
+    (SPEC 6) that keeps the tool path clear of the keep-out boxes and the floor.
+
+    Each twist (30 deg steps) is scored by the path's total shortfall below
+    ``CLEARANCE_GOAL_M`` (summed over samples and tracked points, so a critical
+    configuration that itself touches a shell does not hide the rest of the path); the
+    least shortfall wins, then the smallest turn. Twist 0, the paper's shortest
+    alignment, is kept when its path is clear. Returns the MappedSegment and the twist.
+    """
+    if not keep_out and floor_z is None:
+        return map_segment(feature_poses, allocation, task_poses), 0.0
+    best = None
+    for twist in TWIST_CANDIDATES_RAD:
+        mapped = map_segment(feature_poses, allocation, task_poses, twist_rad=float(twist))
+        distance = _clearances(mapped.poses, keep_out, floor_z, points_E)
+        shortfall = float(np.sum(np.maximum(CLEARANCE_GOAL_M - distance, 0.0)))
+        turn = min(twist, 2 * np.pi - twist)
+        score = (-shortfall, -turn)
+        if best is None or score > best[0]:
+            best = (score, mapped, float(twist))
+        if twist == 0.0 and shortfall == 0.0:
+            break
+    return best[1], best[2]
+
+
+def compose_plan(
+    problem: CompositionProblem,
+    steps: list[Step],
+    features: Mapping[str, Feature],
+    angles: list[np.ndarray],
+    keep_out=(),
+    floor_z: float | None = None,
+    points_E: np.ndarray | None = None,
+) -> tuple[np.ndarray, list[int], np.ndarray, float, float]:
+    """Maps each step's demo onto its span (see :func:`map_span_clear`) and joins them.
+
+    Returns poses (N, 8), critical indices (n,), chosen euler_zyx (n, 3), the exact
+    cost of each step (its allocation's total alpha), and the largest position and
+    rotation corrections applied.
+    """
+    names = list(features)
+    n = problem.num_cons
+    chosen = np.zeros((n, 3))
+    chosen[0] = angles[0][steps[0].a_j]
+    pieces, critical, costs = [], [0], []
+    max_position, max_rotation = 0.0, 0.0
+    for step in steps:
+        span = problem.span_allocation(step)
+        costs.append(span.allocation.cost)
+        for offset, candidate in enumerate(span.candidates):
+            chosen[step.j + offset] = angles[step.j + offset][candidate]
+        task_poses = np.array(
+            [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)]
+        )
+        feature = features[names[step.demo]]
+        mapped, _twist = map_span_clear(feature.poses, span.allocation, task_poses, keep_out, floor_z, points_E)
+        start = sum(len(p) for p in pieces) - (1 if pieces else 0)
+        pieces.append(mapped.poses if not pieces else mapped.poses[1:])
+        anchors = np.asarray(mapped.anchor_indices)
+        critical.extend(int(start + a) for a in anchors[1:])
+        max_position = max(max_position, mapped.max_correction_position_m)
+        max_rotation = max(max_rotation, mapped.max_correction_rotation_rad)
+    return np.concatenate(pieces), critical, chosen, costs, max_position, max_rotation
+
+
+def plan_task(
+    task: ConcreteTask,
+    features: Mapping[str, Feature],
+    *,
+    planner: str = "exact",
+    policy: QPolicy | None = None,
+    tolerances: Tolerances = Tolerances(),
+    max_span: int | None = None,
+    max_speed_m_s: float = DEFAULT_MAX_SPEED_M_S,
+    max_angular_speed_rad_s: float = DEFAULT_MAX_ANGULAR_SPEED_RAD_S,
+    refine_episodes: int = DEFAULT_REFINE_EPISODES,
+    seed: int = 0,
+    floor_z: float | None = None,
+    clearance_points_E: np.ndarray | None = None,
+) -> PlanResult:
+    """Plans one concrete task with the named planner (``exact`` or ``q``; the Q-planner
+    first refines on the task for ``refine_episodes`` episodes, seeded by ``seed``).
+
+    Each span's free twist keeps the tool path clear of the task's obstacles and shells
+    and above ``floor_z``; ``clearance_points_E`` (k, 3) are the points fixed in E that
+    must stay clear (default: :func:`tool_clearance_points` of the task's ``X_tool0_E``).
+    """
+    if planner not in PLANNERS:
+        raise ValueError(f"planner must be one of {PLANNERS}, got {planner!r}")
+    if planner == "q" and policy is None:
+        raise ValueError("the q planner needs a policy")
+    angles, poses = task_candidates(task)
+    problem = CompositionProblem(poses, list(features.values()), tolerances, max_span)
+    greedy_completed, fallback = None, None
+    if planner == "exact":
+        steps = plan_exact(problem)
+    else:
+        q_plan = plan_q(problem, policy, refine_episodes=refine_episodes, seed=seed)
+        steps, greedy_completed, fallback = q_plan.steps, q_plan.greedy_completed, q_plan.fallback
+    nominal = np.array([a[len(a) // 2] for a in angles])
+    if steps is None:
+        return PlanResult(
+            "demonstration_requested", planner, task, nominal,
+            uncovered=tuple(uncovered_segments(problem)),
+            greedy_completed=greedy_completed, fallback=fallback,
+            refine_episodes=refine_episodes if planner == "q" else 0,
+        )
+    keep_out = tuple(task.obstacles) + tuple(task.safety_shells)
+    points_E = tool_clearance_points(task.X_tool0_E) if clearance_points_E is None else clearance_points_E
+    path, critical, chosen, costs, max_position, max_rotation = compose_plan(
+        problem, steps, features, angles, keep_out, floor_z, points_E)
+    timed = time_plan(
+        path, critical, max_speed_m_s=max_speed_m_s, max_angular_speed_rad_s=max_angular_speed_rad_s
+    )
+    names = list(features)
+    composition = tuple(
+        ComposedStep(names[s.demo], s.j + 1, s.k + 1, cost) for s, cost in zip(steps, costs)
+    )
+    return PlanResult(
+        "planned", planner, task, chosen, composition, float(sum(costs)), timed,
+        max_position, max_rotation, (), greedy_completed, fallback,
+        refine_episodes if planner == "q" else 0,
+    )

@@ -1,0 +1,166 @@
+"""UR5e model loading and forward kinematics of ``tool0`` and the end-effector frame E.
+
+This module finds the UR5e model shipped with drake-lfd (inside the installed package, or
+the repository's ``models/`` when run from a checkout), adds it to a MultibodyPlant, and
+gives batched forward kinematics ``X_WE = X_WB * FK(q) * X_tool0_E`` on a
+kinematics-only plant. It builds no simulation diagram (see the closed-loop modules).
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import FixedOffsetFrame, ModelInstanceIndex
+
+from drake_lfd.core.resources import models_directory
+
+UR5E_PACKAGE_NAME = "drake_lfd_models"
+UR5E_URL = f"package://{UR5E_PACKAGE_NAME}/ur5e/ur5e.urdf"
+UR5E_JOINT_NAMES = (
+    "shoulder_pan_joint",
+    "shoulder_lift_joint",
+    "elbow_joint",
+    "wrist_1_joint",
+    "wrist_2_joint",
+    "wrist_3_joint",
+)
+BASE_FRAME_NAME = "base_link"
+TOOL0_FRAME_NAME = "tool0"
+END_EFFECTOR_FRAME_NAME = "E"
+NUM_JOINTS = 6
+
+
+
+
+def make_parser(plant: MultibodyPlant) -> Parser:
+    """A Parser whose package map resolves ``package://drake_lfd_models/...`` offline."""
+    parser = Parser(plant)
+    parser.package_map().AddPackageXml(str(models_directory() / "package.xml"))
+    return parser
+
+
+def add_ur5e(
+    plant: MultibodyPlant,
+    *,
+    X_WB: RigidTransform | None = None,
+    X_tool0_E: RigidTransform | None = None,
+    model_name: str = "ur5e",
+) -> ModelInstanceIndex:
+    """Adds the UR5e welded at ``X_WB`` and the end-effector frame ``E`` at ``X_tool0_E``.
+
+    Must be called before ``plant.Finalize()``. Returns the model instance.
+    """
+    parser = make_parser(plant)
+    parser.SetAutoRenaming(True)
+    (model,) = parser.AddModels(url=UR5E_URL)
+    if plant.GetModelInstanceName(model) != model_name:
+        plant.RenameModelInstance(model, model_name)
+    plant.WeldFrames(
+        plant.world_frame(),
+        plant.GetFrameByName(BASE_FRAME_NAME, model),
+        RigidTransform() if X_WB is None else X_WB,
+    )
+    plant.AddFrame(
+        FixedOffsetFrame(
+            END_EFFECTOR_FRAME_NAME,
+            plant.GetFrameByName(TOOL0_FRAME_NAME, model),
+            RigidTransform() if X_tool0_E is None else X_tool0_E,
+        )
+    )
+    return model
+
+
+class UR5eKinematics:
+    """Forward kinematics of the UR5e on a kinematics-only (continuous) plant.
+
+    Parameters
+    ----------
+    X_WB : RigidTransform, optional
+        Pose of the robot base frame B (``base_link``) in the world W. Identity by default.
+    X_tool0_E : RigidTransform, optional
+        Pose of the end-effector frame E in ``tool0``. Identity by default.
+    """
+
+    def __init__(self, *, X_WB: RigidTransform | None = None, X_tool0_E: RigidTransform | None = None):
+        self.X_WB = RigidTransform() if X_WB is None else RigidTransform(X_WB)
+        self.X_tool0_E = RigidTransform() if X_tool0_E is None else RigidTransform(X_tool0_E)
+        self.plant = MultibodyPlant(time_step=0.0)
+        self.model = add_ur5e(self.plant, X_WB=self.X_WB, X_tool0_E=self.X_tool0_E)
+        self.plant.Finalize()
+        self.context = self.plant.CreateDefaultContext()
+        self.world_frame = self.plant.world_frame()
+        self.tool0_frame = self.plant.GetFrameByName(TOOL0_FRAME_NAME, self.model)
+        self.end_effector_frame = self.plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)
+        self.joints = [self.plant.GetJointByName(name, self.model) for name in UR5E_JOINT_NAMES]
+
+    # -- limits -------------------------------------------------------------------------
+    def position_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper joint position limits, each shape (6,), radians."""
+        return self.plant.GetPositionLowerLimits(), self.plant.GetPositionUpperLimits()
+
+    def velocity_limits(self) -> np.ndarray:
+        """Joint speed limits, shape (6,), rad/s (symmetric)."""
+        return self.plant.GetVelocityUpperLimits()
+
+    def effort_limits(self) -> np.ndarray:
+        """Actuator torque limits in joint order, shape (6,), N m."""
+        limits = []
+        for joint in self.joints:
+            (actuator_index,) = [
+                index
+                for index in self.plant.GetJointActuatorIndices(self.model)
+                if self.plant.get_joint_actuator(index).joint().index() == joint.index()
+            ]
+            limits.append(self.plant.get_joint_actuator(actuator_index).effort_limit())
+        return np.array(limits)
+
+    # -- forward kinematics ---------------------------------------------------------------
+    def _pose_of(self, frame, q: np.ndarray) -> RigidTransform:
+        self.plant.SetPositions(self.context, self.model, np.asarray(q, dtype=float))
+        return self.plant.CalcRelativeTransform(self.context, self.world_frame, frame)
+
+    def X_Wtool0(self, q: np.ndarray) -> RigidTransform:
+        """Pose of ``tool0`` in W for joint angles ``q`` (shape (6,))."""
+        return self._pose_of(self.tool0_frame, q)
+
+    def X_WE(self, q: np.ndarray) -> RigidTransform:
+        """Pose of the end-effector frame E in W for joint angles ``q`` (shape (6,))."""
+        return self._pose_of(self.end_effector_frame, q)
+
+    def X_WE_batch(self, q_samples: np.ndarray) -> np.ndarray:
+        """Homogeneous matrices of X_WE, array shape (m, 4, 4), for ``q_samples`` (m, 6)."""
+        q_samples = np.atleast_2d(np.asarray(q_samples, dtype=float))
+        return np.stack([self.X_WE(q).GetAsMatrix4() for q in q_samples])
+
+    def X_Wtool0_batch(self, q_samples: np.ndarray) -> np.ndarray:
+        """Homogeneous matrices of X_Wtool0, shape (m, 4, 4), for ``q_samples`` (m, 6)."""
+        q_samples = np.atleast_2d(np.asarray(q_samples, dtype=float))
+        return np.stack([self.X_Wtool0(q).GetAsMatrix4() for q in q_samples])
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_kinematics(X_WB_key: bytes, X_tool0_E_key: bytes) -> UR5eKinematics:
+    def unkey(key):
+        return RigidTransform(np.frombuffer(key, dtype=float).reshape(4, 4))
+
+    return UR5eKinematics(X_WB=unkey(X_WB_key), X_tool0_E=unkey(X_tool0_E_key))
+
+
+def shared_kinematics(
+    *, X_WB: RigidTransform | None = None, X_tool0_E: RigidTransform | None = None
+) -> UR5eKinematics:
+    """A cached :class:`UR5eKinematics` for these frames (building a plant costs ~10 ms).
+
+    Not thread-safe: the instance owns one mutable context.
+    """
+    X_WB = RigidTransform() if X_WB is None else X_WB
+    X_tool0_E = RigidTransform() if X_tool0_E is None else X_tool0_E
+    return _cached_kinematics(
+        np.ascontiguousarray(X_WB.GetAsMatrix4()).tobytes(),
+        np.ascontiguousarray(X_tool0_E.GetAsMatrix4()).tobytes(),
+    )
