@@ -8,7 +8,7 @@ UR5e's limit, and the per-call cost of the pieces of the loop. ``--compare`` rep
 the run for plant steps of 1, 2 and 4 ms, so the accuracy cost of a larger step is
 visible next to its speed.
 
-Where the time went, and what was done (2-core machine, shared): DRAKE_NOTES measured
+Where the time went, and what was done (2-core machine, shared): a first measurement gave
 3.3x with a 1 ms plant and a Python differential IK at 10 ms.
 
 - The plant step with PD-controlled actuators costs 170-230 us whatever the step (SAP's
@@ -37,17 +37,14 @@ import timeit
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from drake_lfd.diagrams.closed_loop import (
-    DEFAULT_CLOSED_LOOP_TIME_STEP_S,
-    build_closed_loop,
-    plan_through_joint_configurations,
-    run_closed_loop,
-)
+from drake_lfd.diagrams.closed_loop import plan_through_joint_configurations, run_closed_loop
+from drake_lfd.diagrams.config import CLOSED_LOOP_TIME_STEP_S, PipelineConfig, StationConfig
+from drake_lfd.diagrams.pipeline import build_pipeline
 from drake_lfd.systems.differential_ik import pose_error
-from drake_lfd.robot.kinematics import shared_kinematics
-from drake_lfd.systems.shell_monitor import min_signed_distances
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.robot.scene import min_signed_distances
 from drake_lfd.diagrams.station import build_station
-from drake_lfd.io.task_files import Box
+from drake_lfd.core.tasks import Box
 from drake_lfd.core.timing import TimedPlan
 
 PLAN_DURATION_S = 10.0
@@ -73,7 +70,7 @@ def benchmark_plan() -> TimedPlan:
 
 def path_tracking_errors(result, plan):
     """Max and rms position error (m) and max rotation error (rad) against the plan."""
-    kinematics = shared_kinematics()
+    kinematics = UR5eKinematics()
     trajectory = plan.to_piecewise_pose()
     errors = np.array(
         [
@@ -91,8 +88,11 @@ def path_tracking_errors(result, plan):
 
 def per_call_costs(plan, time_step):
     """Median cost (us) of one controller update, one monitor update and one plant step."""
-    loop = build_closed_loop(plan, obstacles=OBSTACLES, safety_shells=SAFETY_SHELLS, time_step=time_step)
-    context = loop.diagram.CreateDefaultContext()
+    config = PipelineConfig()
+    config.station.time_step = time_step
+    loop = build_pipeline(plan=plan, obstacles=OBSTACLES, safety_shells=SAFETY_SHELLS, with_table=False,
+                          config=config)
+    context = loop.CreateDefaultContext()
     loop.station.set_initial_positions(context, Q_HOME)
     controller_context = loop.controller.GetMyContextFromRoot(context)
     monitor_context = loop.monitor.GetMyContextFromRoot(context)
@@ -118,11 +118,12 @@ def per_call_costs(plan, time_step):
     ):
         times = timeit.repeat(function, number=20, repeat=25)
         costs[name] = 1e6 * float(np.median(times)) / 20
-    station = build_station(obstacles=OBSTACLES, safety_shells=SAFETY_SHELLS, time_step=time_step)
-    station_context = station.diagram.CreateDefaultContext()
+    station = build_station(obstacles=OBSTACLES, safety_shells=SAFETY_SHELLS,
+                            config=StationConfig(time_step=time_step))
+    station_context = station.CreateDefaultContext()
     station.set_initial_positions(station_context, Q_HOME)
-    station.GetInputPort("position_command").FixValue(station_context, Q_HOME)
-    simulator = Simulator(station.diagram, station_context)
+    station.GetInputPort("ur5e.position_command").FixValue(station_context, Q_HOME)
+    simulator = Simulator(station, station_context)
     simulator.Initialize()
     steps = 500
     start = timeit.default_timer()
@@ -156,7 +157,7 @@ def run_once(plan, time_step, controller):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--time-step", type=float, default=DEFAULT_CLOSED_LOOP_TIME_STEP_S, help="plant step, s")
+    parser.add_argument("--time-step", type=float, default=CLOSED_LOOP_TIME_STEP_S, help="plant step, s")
     parser.add_argument("--controller", default="drake", choices=["drake", "pseudo_inverse"])
     parser.add_argument("--compare", action="store_true", help="also run plant steps of 1, 2 and 4 ms")
     args = parser.parse_args(argv)

@@ -24,15 +24,16 @@ from drake_lfd.planning.planner import build_problem
 from drake_lfd.planning.q_learning import DEFAULT_REFINE_EPISODES, greedy_walk, plan_q
 from drake_lfd.planning.random_tasks import chained_task, random_training_task
 from drake_lfd.core.synthetic_library import PAPER5, PAPER6, synthetic_features
-from drake_lfd.io.task_files import ConcreteCriticalConfiguration, ConcreteTask
+from drake_lfd.core.tasks import ConcreteCriticalConfiguration, ConcreteTask
 from drake_lfd.planning.training import train_on_random_tasks
+
+__all__ = ["main"]
 
 
 def load_features(name, six=False):
     if name == "synthetic":
         return synthetic_features(PAPER6 if six else PAPER5)
-    from drake_lfd.io.library import Library
-    from drake_lfd.io.library_access import library_features
+    from drake_lfd.io.library import Library, library_features
 
     if name == "paper5" and six:
         name = "paper6"

@@ -17,6 +17,8 @@ from drake_lfd.core.dual_quaternion import dual_quaternion_from_euler_zyx
 from drake_lfd.core.features import Feature, task_feature_from_poses
 from drake_lfd.core.similarity import Tolerances, allocate_features
 
+__all__ = ["main"]
+
 
 def _demo_poses(num_raw):
     """A screwing-like demo: 0.1 m along tool z while turning -90 deg about it."""

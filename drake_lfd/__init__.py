@@ -1,22 +1,92 @@
 """drake-lfd: compose kinesthetic demonstrations into UR5e motion plans, on Drake.
 
 Implements (and extends) Yu & Chang, "Reinforcement Learning Based User-Guided Motion
-Planning for Human-Robot Collaboration". The pipeline, and the module holding each arrow:
+Planning for Human-Robot Collaboration". The pipeline, and where each arrow lives::
 
-    joint log (RTDE CSV) --read/validate-->  demonstration      demonstrations.py
-    joint samples --UR5e FK-->               poses X_WE          kinematics.py
-    poses --Eq. 7-->                         dual quaternions    dual_quaternion.py
-    dual quaternions --Eq. 12, resample-->   feature HD_k        features.py
-    features --store-->                      library LB          library.py
-    task YAML --load/validate-->             critical configs    tasks.py
-    task + LB --Eq. 19-21-->                 legal actions       similarity.py
-    legal actions --Q-learning / exact-->    composition         planning modules
-    composition --Eq. 22-25-->               SE(3) plan          mapping.py
-    SE(3) plan --timing law-->               X_WE(t), V_WE(t)    trajectory modules
-    X_WE(t) --differential IK-->             UR5e joint motion   closed-loop systems
+    joint log (RTDE CSV) --read, check-->        Demonstration       io.demonstration_logs
+    joint samples --UR5e forward kinematics-->   poses X_WE          robot.kinematics
+    poses --Eq. 7-->                             dual quaternions    core.dual_quaternion
+    dual quaternions --Eq. 12, resampling-->     feature HD_k        core.features
+    features --store-->                          library LB          io.library
+    task YAML --load, check-->                   critical configs    io.task_files, core.tasks
+    task + LB --Eq. 19-21-->                     legal actions       core.similarity, planning.composition
+    legal actions --exact DP / Q-learning-->     composition         planning.exact_planner, planning.q_learning
+    composition --Eq. 22-25-->                   SE(3) plan          core.mapping, planning.planner
+    SE(3) plan --timing law-->                   X_WE(t), V_WE(t)    core.timing
+    X_WE(t) --differential IK, closed loop-->    UR5e joint motion   systems.differential_ik, diagrams.pipeline
 
-Conventions (see README): metres, radians, seconds; quaternions (w, x, y, z); task
-orientations ``euler_zyx: [yaw, pitch, roll]`` with R = Rz(yaw) Ry(pitch) Rx(roll).
+Each stage is also a Drake LeafSystem (``systems/``): ``DemoRecorder`` ->
+``FeatureLibrarySystem`` -> ``PlannerSystem`` -> ``PlanTrajectorySource`` ->
+``DifferentialIKController`` -> the UR5e ``Station``, watched by a ``ShellMonitor``;
+:func:`build_pipeline` wires them in one Diagram.
+
+Layers, lowest first; a module imports only from its own layer or lower ones (a test
+checks it):
+
+``core``
+    Pure maths and data types: dual quaternions, features, similarity, mapping, timing,
+    tasks, demonstrations, errors. No Diagram, no files.
+``robot``
+    The UR5e: kinematics (a MultibodyPlant), initial inverse kinematics, scene geometry.
+``planning``
+    The composition problem and its MDP, the exact and Q-learning planners, training,
+    the Gymnasium environment, replanning.
+``io``
+    Files: task files, demonstration logs, libraries, policies, JSON records.
+``systems``
+    The LeafSystems, thin wrappers over the layers below.
+``diagrams``
+    The station, the pipeline, closed-loop runs, kinesthetic recording, model preview.
+``experiments``
+    Trials and their judging, the paper's Section 6, figures.
+``cli``
+    The ``drake-lfd`` command line.
+
+Conventions: metres, radians, seconds; quaternions (w, x, y, z); task orientations
+``euler_zyx: [yaw, pitch, roll]`` with R = Rz(yaw) Ry(pitch) Rx(roll); monogram names
+(``X_WE`` is the pose of frame E in frame W). See ``docs/`` for the method and formats.
+
+The main entry points are importable from the package itself (loaded on first use, so
+``import drake_lfd`` stays cheap): :func:`load_task`, :class:`Library`,
+:func:`library_features`, :func:`plan_task`, :func:`build_station`,
+:func:`build_pipeline`, :class:`ClosedLoopRunner`, :func:`run_trials`.
 """
 
+from __future__ import annotations
+
+import importlib
+
 __version__ = "0.1.0"
+
+# name -> module that defines it (imported on first access, PEP 562).
+_ENTRY_POINTS = {
+    "load_task": "drake_lfd.io.task_files",
+    "draw_trial": "drake_lfd.core.tasks",
+    "Library": "drake_lfd.io.library",
+    "library_features": "drake_lfd.io.library",
+    "plan_task": "drake_lfd.planning.planner",
+    "PlanResult": "drake_lfd.planning.planner",
+    "build_station": "drake_lfd.diagrams.station",
+    "Station": "drake_lfd.diagrams.station",
+    "build_pipeline": "drake_lfd.diagrams.pipeline",
+    "Pipeline": "drake_lfd.diagrams.pipeline",
+    "PipelineConfig": "drake_lfd.diagrams.config",
+    "ClosedLoopRunner": "drake_lfd.diagrams.closed_loop",
+    "run_trials": "drake_lfd.experiments.simulation",
+    "judge_run": "drake_lfd.experiments.judging",
+}
+
+__all__ = ["__version__", *_ENTRY_POINTS]
+
+
+def __getattr__(name: str):
+    module = _ENTRY_POINTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'drake_lfd' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_ENTRY_POINTS))

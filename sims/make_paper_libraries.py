@@ -27,8 +27,10 @@ import time
 from pathlib import Path
 
 from drake_lfd.io.demonstration_logs import read_rtde_csv, write_rtde_csv
-from drake_lfd.diagrams.kinesthetic import load_guidance_script, record_demonstration
-from drake_lfd.io.library import CACHE_DIRECTORY, Library
+from drake_lfd.io.guidance_scripts import load_guidance_script
+from drake_lfd.diagrams.kinesthetic import record_demonstration
+from drake_lfd.io.library import Library
+from drake_lfd.io.library_manifest import CACHE_DIRECTORY
 
 HERE = Path(__file__).resolve().parent
 DEMOS_DIRECTORY = HERE / "demos"

@@ -1,7 +1,7 @@
 """Headless-Chromium screenshots of Meshcat HTML recordings, for tests.
 
 Chromium comes from Debian's package (``.ci/run`` installs it); tests that need it skip
-when it is absent. Flags as measured in DRAKE_NOTES.md (a virtual-time budget of 0 hangs;
+when it is absent. Flags as measured on this kind of machine (a virtual-time budget of 0 hangs;
 background networking must be off on this closed network).
 """
 

@@ -1,5 +1,5 @@
 """``drake-lfd library add|show|remove``: exit codes, one-line errors, the JSON schema of
-INTERFACES.md, and a library left untouched by every refused add."""
+docs/cli.rst, and a library left untouched by every refused add."""
 
 import hashlib
 import json

@@ -6,11 +6,14 @@ import numpy as np
 import pytest
 
 import drake_lfd.cli as cli
-from drake_lfd.io.demonstration_logs import Demonstration
+from drake_lfd.core.demonstrations import Demonstration
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.io.library import Library
 from drake_lfd.planning.random_tasks import _euler_zyx_of
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices, pose_from_dual_quaternion
+from drake_lfd.core.dual_quaternion import (
+    dual_quaternion_from_matrices,
+    translation_rotation_from_dual_quaternion,
+)
 
 Q_HOME = np.array([0.3, -1.3, 1.7, -1.97, -np.pi / 2, 0.2])
 # Joint-space demonstrations: wrist_3 turns the tool about its own z axis (a screw);
@@ -41,7 +44,7 @@ def write_task(path, q_chain):
     """A task whose critical configurations are the FK of joint configurations."""
     kinematics = UR5eKinematics()
     D = dual_quaternion_from_matrices(kinematics.X_WE_batch(np.array(q_chain)))
-    p, q = pose_from_dual_quaternion(D)
+    p, q = translation_rotation_from_dual_quaternion(D)
     lines = ["name: joint_chain", "critical_configurations:"]
     for pi, qi in zip(p, q):
         numbers = ", ".join(repr(float(v)) for v in pi)

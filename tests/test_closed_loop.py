@@ -1,4 +1,4 @@
-"""Closed-loop UR5e runs of short hand-built plans, and their judgement (SPEC 9)."""
+"""Closed-loop UR5e runs of short hand-built plans, and their judgement (docs/method.rst, Closed loop and success)."""
 
 import base64
 import math
@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 import drake_lfd.diagrams.closed_loop as mut
-from drake_lfd.robot.kinematics import shared_kinematics
+import drake_lfd.experiments.judging as judging
+from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene
-from drake_lfd.io.task_files import Box, PathConstraint
+from drake_lfd.core.tasks import Box, PathConstraint
 from browser import CHROMIUM, fraction_of_hue, fraction_of_purple, screenshot
 
 pytestmark = pytest.mark.slow
@@ -50,9 +51,9 @@ def _assert_tracked(result, plan):
         assert error.position_m < 0.005 and error.rotation_rad < math.radians(2.0)
         # Independent of the controller: FK of the logged q at that time.
         expected = plan.X_WE_list()[index]
-        X = shared_kinematics().X_WE(error.q)
+        X = UR5eKinematics().X_WE(error.q)
         assert np.linalg.norm(X.translation() - expected.translation()) == pytest.approx(error.position_m)
-    judgement = mut.judge_run(result, plan)
+    judgement = judging.judge_run(result)
     assert judgement.success, judgement.failures
 
 
@@ -130,7 +131,7 @@ def test_a_plan_through_a_shell_fails_naming_the_shell(plan):
     in_the_way = Box(name="in_the_way", centre=midway, size=[0.04, 0.04, 0.04])
     result = mut.run_closed_loop(plan, q_initial=Q_HOME, safety_shells=[SHELL_BELOW, in_the_way])
     assert result.min_shell_distance_m < -0.01
-    judgement = mut.judge_run(result, plan)
+    judgement = judging.judge_run(result)
     assert not judgement.success
     assert len(judgement.failures) == 1
     assert judgement.failures[0].startswith("safety shell 'in_the_way' penetrated by wrist_3_link/")
@@ -142,14 +143,14 @@ def test_a_plan_through_a_shell_fails_naming_the_shell(plan):
     )
     assert stopped.stopped_early and stopped.sim_time_s < result.sim_time_s
     assert "in_the_way" in stopped.stop_reason
-    failures = mut.judge_run(stopped, plan).failures
+    failures = judging.judge_run(stopped).failures
     assert any(f.startswith("con_3: not reached") for f in failures)
     assert any(f.startswith("safety shell 'in_the_way' penetrated") for f in failures)
 
 
 def test_judge_names_each_broken_criterion(tracked, plan):
     result = tracked
-    R_con_1 = shared_kinematics().X_WE(Q_HOME).rotation()
+    R_con_1 = UR5eKinematics().X_WE(Q_HOME).rotation()
     euler_zyx = R_con_1.ToRollPitchYaw().vector()[::-1]
     keep_level = PathConstraint(
         kind="orientation", con_from=1, con_to=3, euler_zyx=euler_zyx, tolerance_rad=math.radians(5.0)
@@ -157,10 +158,9 @@ def test_judge_names_each_broken_criterion(tracked, plan):
     loose = PathConstraint(
         kind="orientation", con_from=1, con_to=3, euler_zyx=euler_zyx, tolerance_rad=math.radians(30.0)
     )
-    assert mut.judge_run(result, plan, path_constraints=[loose]).success
-    failures = mut.judge_run(
+    assert judging.judge_run(result, path_constraints=[loose]).success
+    failures = judging.judge_run(
         result,
-        plan,
         path_constraints=[keep_level],
         velocity_limits=np.full(6, 0.05),
         joint_limits=(np.full(6, -2 * math.pi), np.array([7.0, 7.0, 7.0, 7.0, -1.6, 7.0])),

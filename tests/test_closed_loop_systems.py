@@ -18,11 +18,12 @@ import drake_lfd.systems.differential_ik as mut_ik
 import drake_lfd.systems.plan_trajectory_source as mut_source
 import drake_lfd.systems.shell_monitor as mut_monitor
 from drake_lfd.diagrams.closed_loop import plan_through_joint_configurations
+from drake_lfd.diagrams.pipeline import scheduled_plan_from_timed
 from drake_lfd.robot.initial_ik import UnreachableConfigurationError, solve_initial_configuration
-from drake_lfd.robot.kinematics import UR5eKinematics, add_ur5e, shared_kinematics
-from drake_lfd.robot.scene import KinematicScene, add_scene, table_under_robot
+from drake_lfd.robot.kinematics import UR5eKinematics, add_ur5e
+from drake_lfd.robot.scene import KinematicScene, add_scene, min_signed_distances, table_under_robot
 from drake_lfd.diagrams.station import build_station
-from drake_lfd.io.task_files import Box
+from drake_lfd.core.tasks import Box
 
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -math.pi / 2, 0.0])
 Q_OTHER = Q_HOME + np.array([0.3, 0.1, -0.2, 0.1, 0.2, 0.3])
@@ -33,8 +34,9 @@ Q_OTHER = Q_HOME + np.array([0.3, 0.1, -0.2, 0.1, 0.2, 0.3])
 
 def test_plan_source_outputs_pose_velocity_and_holds_the_ends():
     plan = plan_through_joint_configurations([Q_HOME, Q_OTHER])
-    dut = mut_source.PlanTrajectorySource(plan=plan, start_time_s=0.5)
+    dut = mut_source.PlanTrajectorySource()
     context = dut.CreateDefaultContext()
+    dut.plan_input_port.FixValue(context, scheduled_plan_from_timed(plan, start_time_s=0.5))
     trajectory = plan.to_piecewise_pose()
     first, last = plan.X_WE_list()[0], plan.X_WE_list()[-1]
 
@@ -60,6 +62,18 @@ def test_plan_source_outputs_pose_velocity_and_holds_the_ends():
     omega = mut_ik.pose_error(X_next, X)[:3] / h
     np.testing.assert_allclose(V[:3], omega, atol=1e-5)
     assert np.linalg.norm(V[3:]) > 0.01  # it does move there
+
+
+def test_plan_source_follows_a_new_plan_on_its_input():
+    dut = mut_source.PlanTrajectorySource()
+    context = dut.CreateDefaultContext()
+    first = plan_through_joint_configurations([Q_HOME, Q_OTHER])
+    second = plan_through_joint_configurations([Q_OTHER, Q_HOME])
+    context.SetTime(0.0)
+    dut.plan_input_port.FixValue(context, scheduled_plan_from_timed(first))
+    assert dut.X_WE_desired_output_port.Eval(context).IsNearlyEqualTo(first.X_WE_list()[0], 1e-12)
+    dut.plan_input_port.FixValue(context, scheduled_plan_from_timed(second))
+    assert dut.X_WE_desired_output_port.Eval(context).IsNearlyEqualTo(second.X_WE_list()[0], 1e-12)
 
 
 # ------------------------------------------------------------ DifferentialIKController
@@ -90,7 +104,7 @@ def _one_step(dut, q, X_WE_desired, V_WE_desired=np.zeros(6), q_command=None):
 @pytest.mark.parametrize("method", ["drake", "pseudo_inverse"])
 def test_one_step_moves_toward_the_target(station, method):
     dut = _controller(station, method=method)
-    kinematics = shared_kinematics()
+    kinematics = UR5eKinematics()
     X_start = kinematics.X_WE(Q_HOME)
     X_target = RigidTransform(
         X_start.rotation().multiply(RollPitchYaw(0.02, 0.0, 0.0).ToRotationMatrix()),
@@ -105,7 +119,7 @@ def test_one_step_moves_toward_the_target(station, method):
 
 
 def test_velocity_limits_respected_where_the_baseline_ignores_them(station):
-    kinematics = shared_kinematics()
+    kinematics = UR5eKinematics()
     X_start = kinematics.X_WE(Q_HOME)
     V_fast = np.array([0.0, 0.0, 0.0, 3.0, 0.0, 0.0])  # 3 m/s: far beyond the joints
     limited = _controller(station)
@@ -130,7 +144,7 @@ def test_velocity_limits_respected_where_the_baseline_ignores_them(station):
 
 def test_position_limits_respected(station):
     # Elbow 1 mrad from its limit (pi) while the target asks it to open further.
-    kinematics = shared_kinematics()
+    kinematics = UR5eKinematics()
     lower, upper = kinematics.position_limits()
     q = Q_HOME.copy()
     q[2] = upper[2] - 1e-3
@@ -146,7 +160,7 @@ def test_position_limits_respected(station):
 def test_closed_form_equals_drakes_qp(station):
     """The closed form used for the square Jacobian is Drake's QP's solution."""
     dut = _controller(station)
-    kinematics = shared_kinematics()
+    kinematics = UR5eKinematics()
     rng = np.random.default_rng(7)
     lower, upper = kinematics.position_limits()
     limits = dut.velocity_limits
@@ -179,7 +193,7 @@ def _flange_box(distance, name="shell"):
     """A 0.1 m box whose top face lies ``distance`` below the lowest point of the flange
     at Q_HOME (tool pointing down), with the expected signed distance computed by hand:
     the flange's bottom face is a disc of radius 0.032 m about tool0, tilted slightly."""
-    X_Wtool0 = shared_kinematics().X_Wtool0(Q_HOME)
+    X_Wtool0 = UR5eKinematics().X_Wtool0(Q_HOME)
     z_axis = X_Wtool0.rotation().matrix()[:, 2]
     lowest = X_Wtool0.translation()[2] - 0.032 * math.sqrt(max(1.0 - z_axis[2] ** 2, 0.0))
     centre = X_Wtool0.translation().copy()
@@ -239,7 +253,7 @@ def test_shell_does_not_push_the_robot_but_obstacles_collide():
     assert "obstacle" in names and "shell" not in names
     # ... while the monitor's pair query still sees the shell.
     (shell_id,) = scene.geometry.shell_geometry_ids
-    distances = mut_monitor.min_signed_distances(query_object, scene.geometry.robot_geometry_ids, [shell_id])
+    distances = min_signed_distances(query_object, scene.geometry.robot_geometry_ids, [shell_id])
     assert distances.min() == pytest.approx(-0.003, abs=1e-6)
 
 
@@ -299,7 +313,7 @@ def test_initial_ik_reaches_the_pose_elbow_up_and_reports_clearance():
 
 
 def test_initial_ik_reports_a_configuration_inside_a_shell():
-    X_WE = shared_kinematics().X_WE(Q_HOME)
+    X_WE = UR5eKinematics().X_WE(Q_HOME)
     result = solve_initial_configuration(X_WE, safety_shells=[_flange_box(-0.01, name="too_close")])
     assert not result.collision_free
     assert result.closest_box == "safety shell 'too_close'"

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 import drake_lfd.io.demonstration_logs as mut
+from drake_lfd.core.demonstrations import Demonstration, check_demonstration
 from drake_lfd.core.errors import InputError
-from drake_lfd.robot.kinematics import shared_kinematics
+from drake_lfd.robot.kinematics import UR5eKinematics, dual_quaternions_from_demonstration, poses_from_demonstration
 
 Q_HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0])
 
@@ -82,7 +83,7 @@ def refused(tmp_path, text, name="log.csv"):
 
 def test_round_trip_is_exact(tmp_path):
     t, q = joint_motion()
-    demo = mut.Demonstration("wave", t, q, description="a wave")
+    demo = Demonstration("wave", t, q, description="a wave")
     path = tmp_path / "wave.csv"
     mut.write_rtde_csv(demo, path)
     header = path.read_text().splitlines()[0]
@@ -248,14 +249,14 @@ def test_missing_file(tmp_path):
 
 def test_check_demonstration_in_code():
     t, q = joint_motion(m=5)
-    mut.check_demonstration(mut.Demonstration("ok", t, q))
+    check_demonstration(Demonstration("ok", t, q))
     with pytest.raises(InputError, match="sample 2"):
-        mut.check_demonstration(mut.Demonstration("x", t[[0, 1, 1, 3]], q[:4]))
+        check_demonstration(Demonstration("x", t[[0, 1, 1, 3]], q[:4]))
     with pytest.raises(InputError, match="at least 2"):
-        mut.check_demonstration(mut.Demonstration("x", t[:1], q[:1]))
+        check_demonstration(Demonstration("x", t[:1], q[:1]))
     with pytest.raises(ValueError):
-        mut.Demonstration("x", t, q[:, :5])
-    demo = mut.Demonstration("x", t, q)
+        Demonstration("x", t, q[:, :5])
+    demo = Demonstration("x", t, q)
     with pytest.raises(ValueError):
         demo.joint_positions[0, 0] = 1.0
 
@@ -265,13 +266,13 @@ def test_check_demonstration_in_code():
 
 def test_poses_and_dual_quaternions_by_forward_kinematics():
     t, q = joint_motion(m=4)
-    kinematics = shared_kinematics()
-    demo = mut.Demonstration("x", t, q)
-    X = mut.poses_from_demonstration(demo, kinematics)
+    kinematics = UR5eKinematics()
+    demo = Demonstration("x", t, q)
+    X = poses_from_demonstration(demo, kinematics)
     assert X.shape == (4, 4, 4)
     for k in range(4):
         np.testing.assert_allclose(X[k], kinematics.X_WE(q[k]).GetAsMatrix4(), atol=1e-15)
-    D = mut.dual_quaternions_from_demonstration(demo, kinematics)
+    D = dual_quaternions_from_demonstration(demo, kinematics)
     assert D.shape == (4, 8)
     from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
 

@@ -1,6 +1,10 @@
 """Dual quaternions agree with Drake's RigidTransform and with pytransform3d."""
 
+import importlib
+import inspect
+
 import numpy as np
+import pytest
 import pytransform3d.batch_rotations as pbr
 import pytransform3d.trajectories as ptr
 import pytransform3d.transformations as pt
@@ -54,11 +58,11 @@ def test_composition_inverse_and_conversions_match_rigid_transform():
             mut.rigid_transform_from_dual_quaternion(mut.dual_quaternion_conjugate(D_AB)).GetAsMatrix4(),
             X_AB.inverse().GetAsMatrix4(), atol=TOL)
         np.testing.assert_allclose(mut.translation_from_dual_quaternion(D_AB), X_AB.translation(), atol=TOL)
-        p, q = mut.pose_from_dual_quaternion(D_AB)
+        p, q = mut.translation_rotation_from_dual_quaternion(D_AB)
         np.testing.assert_allclose(p, X_AB.translation(), atol=TOL)
         assert same_pose(np.r_[q, 0, 0, 0, 0], np.r_[X_AB.rotation().ToQuaternion().wxyz(), 0, 0, 0, 0])
         assert same_pose(mut.dual_quaternion_from_matrices(X_AB.GetAsMatrix4()), D_AB)
-        assert same_pose(mut.dual_quaternion_from_pose(p, q), D_AB)
+        assert same_pose(mut.dual_quaternion_from_translation_rotation(p, q), D_AB)
 
 
 def test_relative_pose_is_pose_of_b_in_a():
@@ -128,7 +132,7 @@ def test_sclerp_endpoints_and_known_screw_midpoint():
 
 def test_sclerp_pure_translation_identity_and_tiny_rotation():
     D0 = mut.dual_quaternion_from_euler_zyx([0.1, 0.2, 0.3], [0.4, 0.5, 0.6])
-    step = mut.dual_quaternion_from_pose([0.3, -0.1, 0.2], [1.0, 0.0, 0.0, 0.0])
+    step = mut.dual_quaternion_from_translation_rotation([0.3, -0.1, 0.2], [1.0, 0.0, 0.0, 0.0])
     D1 = mut.dual_quaternion_multiply(step, D0)  # world-frame translation
     s = np.linspace(0.0, 1.0, 7)
     D = mut.dual_quaternion_sclerp(D0, D1, s)
@@ -137,7 +141,8 @@ def test_sclerp_pure_translation_identity_and_tiny_rotation():
     np.testing.assert_allclose(D[:, :4], np.broadcast_to(D0[:4], (7, 4)), atol=TOL)
     np.testing.assert_allclose(mut.dual_quaternion_sclerp(D0, D0, s), np.broadcast_to(D0, (7, 8)), atol=TOL)
     # A 1e-9 rad rotation with a translation: no 0/0 anywhere, result is the blend.
-    tiny = mut.dual_quaternion_from_pose([0.0, 0.0, 0.5], [np.cos(0.5e-9), 0.0, 0.0, np.sin(0.5e-9)])
+    tiny = mut.dual_quaternion_from_translation_rotation(
+        [0.0, 0.0, 0.5], [np.cos(0.5e-9), 0.0, 0.0, np.sin(0.5e-9)])
     mid = mut.dual_quaternion_sclerp(mut.IDENTITY_DUAL_QUATERNION, tiny, 0.5)
     assert np.all(np.isfinite(mid))
     np.testing.assert_allclose(mut.translation_from_dual_quaternion(mid), [0.0, 0.0, 0.25], atol=TOL)
@@ -161,9 +166,9 @@ def test_sclerp_batched_pairs():
 def test_twist_log_exp_round_trip(axis, angle, v):
     axis = np.array(axis) / np.linalg.norm(axis)
     xi = np.concatenate([angle * axis, v])
-    D = mut.dual_quaternion_from_twist(xi)
-    np.testing.assert_allclose(mut.twist_from_dual_quaternion(D), xi, atol=1e-10)
-    np.testing.assert_allclose(mut.twist_from_dual_quaternion(-D), xi, atol=1e-10)
+    D = mut.dual_quaternion_from_exponential_coordinates(xi)
+    np.testing.assert_allclose(mut.exponential_coordinates_from_dual_quaternion(D), xi, atol=1e-10)
+    np.testing.assert_allclose(mut.exponential_coordinates_from_dual_quaternion(-D), xi, atol=1e-10)
 
 
 def test_euler_zyx_is_eq17_and_drake_roll_pitch_yaw():
@@ -190,7 +195,7 @@ def test_canonical_sign_and_tie_break():
     assert np.all(canonical[:, 0] >= 0)
     np.testing.assert_array_equal(canonical, mut.dual_quaternion_canonical(D))
     # Half-turn about -y: r_w == 0, so the first non-zero (r_y) becomes positive.
-    half_turn = mut.dual_quaternion_from_pose([1.0, 2.0, 3.0], [0.0, 0.0, -1.0, 0.0])
+    half_turn = mut.dual_quaternion_from_translation_rotation([1.0, 2.0, 3.0], [0.0, 0.0, -1.0, 0.0])
     canonical = mut.dual_quaternion_canonical(half_turn)
     np.testing.assert_array_equal(canonical, -half_turn)
     assert same_pose(canonical, half_turn)
@@ -229,3 +234,76 @@ def test_rigid_transform_round_trip():
     assert D.shape == (8,)
     assert mut.rigid_transform_from_dual_quaternion(D).IsNearlyEqualTo(X, TOL)
     assert mut.rigid_transform_from_dual_quaternion(-D).IsNearlyEqualTo(X, TOL)
+
+
+def unit_samples(n=5, seed=8):
+    rng = np.random.default_rng(seed)
+    return mut.dual_quaternion_from_euler_zyx(rng.normal(size=(n, 3)), rng.normal(size=(n, 3)))
+
+
+def test_unit_checks_accept_unit_inputs_without_copying():
+    D = unit_samples()
+    assert mut.check_unit_dual_quaternions(D) is D
+    assert mut.check_unit_dual_quaternions(-D[0]).shape == (8,)
+    # Rounding drift far above what products accumulate is still accepted.
+    drifted = D * (1.0 + 0.5 * mut.UNIT_NORM_TOLERANCE)
+    np.testing.assert_array_equal(mut.check_unit_dual_quaternions(drifted), drifted)
+    q = D[:, :4]
+    np.testing.assert_array_equal(mut.check_unit_quaternions(q), q)
+    np.testing.assert_array_equal(mut.check_unit_dual_quaternions(D[None].tolist()), D[None])
+
+
+@pytest.mark.parametrize("defect", ["scaled", "dual part not orthogonal", "nan", "seven columns", "scalar"])
+def test_dual_quaternion_check_rejects(defect):
+    D = unit_samples()
+    if defect == "scaled":
+        D[3] *= 1.01
+    elif defect == "dual part not orthogonal":
+        D[3, 4] += 1e-3  # |r| stays 1
+    elif defect == "nan":
+        D[3, 6] = np.nan
+    elif defect == "seven columns":
+        D = D[:, :7]
+    else:
+        D = 1.0
+    with pytest.raises(ValueError, match="demo poses"):
+        mut.check_unit_dual_quaternions(D, "demo poses")
+
+
+def test_quaternion_check_rejects():
+    with pytest.raises(ValueError, match="unit quaternions.*entry 1"):
+        mut.check_unit_quaternions([[1.0, 0, 0, 0], [1.0, 1.0, 0, 0]])
+    with pytest.raises(ValueError, match=r"shape \(\.\.\., 4\)"):
+        mut.check_unit_quaternions([1.0, 0, 0])
+
+
+def test_rigid_transform_from_dual_quaternion_checks_its_input():
+    D = unit_samples()
+    with pytest.raises(ValueError, match="unit dual quaternions"):
+        mut.rigid_transform_from_dual_quaternion(2.0 * D[0])
+    with pytest.raises(ValueError, match=r"shape \(8,\)"):
+        mut.rigid_transform_from_dual_quaternion(D[:2])
+
+
+def test_identity_constant_is_read_only():
+    with pytest.raises(ValueError):
+        mut.IDENTITY_DUAL_QUATERNION[0] = 2.0
+    np.testing.assert_array_equal(mut.IDENTITY_DUAL_QUATERNION, [1, 0, 0, 0, 0, 0, 0, 0])
+
+
+def assert_public_api_listed(module):
+    """``__all__`` names only what exists, and every public function and class defined here."""
+    defined = {name for name, value in vars(module).items()
+               if not name.startswith("_") and (inspect.isfunction(value) or inspect.isclass(value))
+               and value.__module__ == module.__name__}
+    assert defined <= set(module.__all__)
+    assert len(set(module.__all__)) == len(module.__all__)
+    assert all(hasattr(module, name) for name in module.__all__)
+
+
+@pytest.mark.parametrize("module_name", [
+    "dual_quaternion", "features", "mapping", "timing", "synthetic_library", "read_only_arrays", "errors",
+    "resources",
+])
+def test_core_public_api_is_listed(module_name):
+    assert_public_api_listed(importlib.import_module(f"drake_lfd.core.{module_name}"))

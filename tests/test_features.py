@@ -35,7 +35,7 @@ def test_feature_is_pose_of_last_frame_in_each_frame():
     rng = np.random.default_rng(0)
     transforms = [RigidTransform(RollPitchYaw(*rng.normal(size=3)), rng.normal(size=3)) for _ in range(6)]
     D = np.stack([dual_quaternion_from_rigid_transform(X) for X in transforms])
-    deltas = mut.feature_from_poses(D)
+    deltas = mut.deltas_from_poses(D)
     assert deltas.shape == (5, 8)
     assert np.all(deltas[:, 0] >= 0)
     for X_Wi, delta in zip(transforms[:-1], deltas):
@@ -47,7 +47,7 @@ def test_feature_is_pose_of_last_frame_in_each_frame():
                                transforms[0].rotation().inverse().multiply(
                                    transforms[-1].translation() - transforms[0].translation()), atol=TOL)
     np.testing.assert_allclose(feature.rotations, deltas[:, :4])
-    np.testing.assert_allclose(dual_quaternion_canonical(mut.poses_from_feature(deltas, D[-1])),
+    np.testing.assert_allclose(dual_quaternion_canonical(mut.poses_from_deltas(deltas, D[-1])),
                                dual_quaternion_canonical(D), atol=TOL)
     with pytest.raises(ValueError):
         feature.deltas[0, 0] = 2.0  # read-only
@@ -57,7 +57,7 @@ def test_features_invariant_to_moving_the_whole_demonstration():
     D = recorded(125.0)
     X = dual_quaternion_from_euler_zyx([0.3, -1.2, 0.7], [2.0, -0.4, 1.1])
     moved = dual_quaternion_multiply(X, D)
-    np.testing.assert_allclose(mut.feature_from_poses(moved), mut.feature_from_poses(D), atol=TOL)
+    np.testing.assert_allclose(mut.deltas_from_poses(moved), mut.deltas_from_poses(D), atol=TOL)
     a = mut.Feature.from_poses(D)
     b = mut.Feature.from_poses(moved)
     np.testing.assert_allclose(b.deltas, a.deltas, atol=1e-10)
@@ -133,7 +133,7 @@ def test_recording_rate_does_not_change_features_or_verdicts():
     np.testing.assert_allclose(slow.rotations, fast.rotations, atol=1e-4)
     np.testing.assert_allclose(slow.translations, fast.translations, atol=1e-4)
     # Recording at 500 Hz without resampling would give 4x the deltas.
-    assert len(mut.feature_from_poses(recorded(500.0))) == 1000
+    assert len(mut.deltas_from_poses(recorded(500.0))) == 1000
 
     rng = np.random.default_rng(1)
     verdicts = []
@@ -160,3 +160,55 @@ def test_task_feature_uses_eq18_and_eq17_convention():
     h = np.sqrt(0.5)
     np.testing.assert_allclose(feature.rotations, [[h, -h, 0, 0]] * 3, atol=TOL)
     np.testing.assert_allclose(feature.translations, [[-0.3, 0, 0], [-0.2, 0, 0], [-0.1, 0, 0]], atol=TOL)
+
+
+@pytest.mark.parametrize("function", [
+    mut.deltas_from_poses, mut.arc_lengths_from_poses, mut.resample_by_arc_length, mut.Feature.from_poses,
+    mut.task_feature_from_poses,
+])
+def test_entry_points_reject_non_unit_or_misshapen_poses(function):
+    D = recorded(10.0)
+    function(D)
+    scaled = D.copy()
+    scaled[3] *= 1.001
+    with pytest.raises(ValueError, match="unit dual quaternions"):
+        function(scaled)
+    with pytest.raises(ValueError, match="unit dual quaternions"):
+        function(np.where(np.arange(len(D))[:, None] == 3, np.nan, D))
+    for misshapen in (D[:, :7], D[0], D[:1], D[None]):
+        with pytest.raises(ValueError, match="shape"):
+            function(misshapen)
+
+
+def test_poses_from_deltas_checks_its_inputs():
+    D = recorded(10.0)
+    deltas = mut.deltas_from_poses(D)
+    with pytest.raises(ValueError, match="deltas"):
+        mut.poses_from_deltas(2.0 * deltas, D[-1])
+    with pytest.raises(ValueError, match="D_final"):
+        mut.poses_from_deltas(deltas, 2.0 * D[-1])
+    with pytest.raises(ValueError, match="shape"):
+        mut.poses_from_deltas(deltas, D[-2:])
+
+
+def test_feature_constructor_checks_shapes_and_units_and_stores_read_only_arrays():
+    feature = mut.Feature.from_poses(recorded(10.0), num_samples=8)
+    parts = dict(rotations=feature.rotations, translations=feature.translations, deltas=feature.deltas,
+                 poses=feature.poses)
+    # Read-only float arrays are kept as they are; anything else is copied, read-only.
+    assert mut.Feature(**parts).deltas is feature.deltas
+    writable = {name: np.array(value) for name, value in parts.items()}
+    copied = mut.Feature(**writable)
+    assert writable["deltas"].flags.writeable
+    for name in parts:
+        assert getattr(copied, name) is not writable[name]
+        assert not getattr(copied, name).flags.writeable
+    assert mut.Feature(**{**parts, "poses": None}).poses is None
+    with pytest.raises(ValueError, match="needs rotations"):
+        mut.Feature(**{**parts, "translations": feature.translations[:-1]})
+    with pytest.raises(ValueError, match="needs rotations"):
+        mut.Feature(**{**parts, "poses": feature.poses[:-1]})
+    with pytest.raises(ValueError, match="deltas"):
+        mut.Feature(**{**parts, "deltas": 2.0 * feature.deltas})
+    with pytest.raises(ValueError, match="deltas"):
+        mut.Feature.from_deltas(feature.deltas[0])

@@ -1,10 +1,9 @@
-"""Simulated kinesthetic demonstrations: guidance scripts, the virtual hand, the RTDE-rate
-recorder, ``drake-lfd record`` and the bundled paper libraries (Table 5)."""
+"""Simulated kinesthetic demonstrations: guidance scripts, the guidance path, the virtual
+hand, the RTDE-rate recorder, ``drake-lfd record`` and the bundled paper libraries (Table 5)."""
 
 import math
 import subprocess
 import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -16,9 +15,13 @@ import drake_lfd.experiments.table5 as table5
 from drake_lfd.io.task_files import load_task
 from pydrake.systems.analysis import Simulator
 
+import drake_lfd.core.guidance as guidance
 import drake_lfd.diagrams.kinesthetic as mut
+import drake_lfd.io.guidance_scripts as scripts
+from drake_lfd.systems.virtual_hand import VirtualHand, VirtualHandGains
 from drake_lfd.systems.demo_recorder import DemoRecorder
-from drake_lfd.io.demonstration_logs import dual_quaternions_from_demonstration, read_rtde_csv
+from drake_lfd.robot.kinematics import dual_quaternions_from_demonstration
+from drake_lfd.io.demonstration_logs import read_rtde_csv
 from drake_lfd.core.dual_quaternion import (
     axis_angle_from_quaternion,
     dual_quaternion_from_rigid_transform,
@@ -48,13 +51,13 @@ seed: 7
 
 
 def test_script_loads_with_defaults():
-    script = mut.guidance_script_from_text(SCREW_SCRIPT, file="screw.yaml")
+    script = scripts.guidance_script_from_text(SCREW_SCRIPT, file="screw.yaml")
     assert script.name == "short_screw"
     assert len(script.waypoints) == 2
     assert script.sample_rate_hz == 500.0
-    assert script.hold_s == mut.DEFAULT_HOLD_S
-    assert script.duration_s == pytest.approx(2.0 + mut.DEFAULT_HOLD_S)
-    assert script.hand_noise == mut.HandNoise()
+    assert script.hold_s == guidance.DEFAULT_HOLD_S
+    assert script.duration_s == pytest.approx(2.0 + guidance.DEFAULT_HOLD_S)
+    assert script.hand_noise == guidance.HandNoise()
     assert script.seed == 7
     # euler_zyx [90deg, 0, pi] is Rz(90 deg) Rx(180 deg).
     expected = RotationMatrix(RollPitchYaw(math.pi, 0.0, math.pi / 2))
@@ -81,7 +84,7 @@ def test_script_loads_with_defaults():
 def test_bad_scripts_name_the_field(edit, field, words):
     text = edit(SCREW_SCRIPT)
     with pytest.raises(InputError) as info:
-        mut.guidance_script_from_text(text, file="bad.yaml")
+        scripts.guidance_script_from_text(text, file="bad.yaml")
     message = str(info.value)
     assert "\n" not in message
     assert message.startswith("bad.yaml: ")
@@ -104,9 +107,9 @@ def _poses_close(D_a, D_b, position_tol, angle_tol):
 
 
 def test_steady_hand_passes_through_the_waypoints_and_stops():
-    script = mut.guidance_script_from_text(SCREW_SCRIPT)
-    steady = mut.GuidanceScript(**{**script.__dict__, "hand_noise": mut.STEADY_HAND})
-    path = mut.GuidancePath(steady)
+    script = scripts.guidance_script_from_text(SCREW_SCRIPT)
+    steady = guidance.GuidanceScript(**{**script.__dict__, "hand_noise": guidance.STEADY_HAND})
+    path = guidance.GuidancePath(steady)
     D = steady.waypoint_dual_quaternions()
     assert _poses_close(path.poses([0.0]), D[0], 1e-12, 1e-9)
     assert _poses_close(path.poses([2.0, 2.3, 2.5]), D[1], 1e-12, 1e-9)
@@ -119,8 +122,8 @@ def test_steady_hand_passes_through_the_waypoints_and_stops():
 
 
 def test_hand_noise_is_small_smooth_seeded_and_fades_out():
-    script = mut.guidance_script_from_text(SCREW_SCRIPT)
-    path = mut.GuidancePath(script)
+    script = scripts.guidance_script_from_text(SCREW_SCRIPT)
+    path = guidance.GuidancePath(script)
     t = np.linspace(0.0, script.duration_s, 2001)
     dp, dtheta = path.wobble(t)
     assert np.abs(dp[0]).max() == 0.0 and np.abs(dtheta[0]).max() == 0.0
@@ -135,17 +138,17 @@ def test_hand_noise_is_small_smooth_seeded_and_fades_out():
     assert tau[0] == 0.0 and path.script_time([2.0])[0] == pytest.approx(2.0, abs=1e-12)
     assert 0.0 < np.abs(tau - t).max() < 0.05
     # Seeded.
-    again = mut.GuidancePath(script).poses(t)
+    again = guidance.GuidancePath(script).poses(t)
     np.testing.assert_array_equal(path.poses(t), again)
-    other = mut.GuidancePath(mut.GuidanceScript(**{**script.__dict__, "seed": 8})).poses(t)
+    other = guidance.GuidancePath(guidance.GuidanceScript(**{**script.__dict__, "seed": 8})).poses(t)
     assert np.abs(other - again).max() > 1e-5
 
 
 def test_virtual_hand_pulls_towards_the_guidance():
-    gains = mut.VirtualHandGains()
+    gains = VirtualHandGains()
     count = 10
     R_WH = np.tile(np.eye(3), (count, 1, 1))
-    guidance = mut.SampledGuidance(
+    sampled = guidance.SampledGuidance(
         time_step_s=1e-3,
         p_WH=np.tile([0.5, 0.0, 0.3], (count, 1)),
         R_WH=R_WH,
@@ -155,7 +158,7 @@ def test_virtual_hand_pulls_towards_the_guidance():
     X_BE = RigidTransform([0.0, 0.0, 0.1])
     from pydrake.multibody.tree import BodyIndex
 
-    dut = mut.VirtualHand(guidance=guidance, body_index=BodyIndex(1), X_BE=X_BE, gains=gains)
+    dut = VirtualHand(guidance=sampled, body_index=BodyIndex(1), X_BE=X_BE, gains=gains)
     context = dut.CreateDefaultContext()
     # Body 1 such that E sits 1 cm short in x and turned 0.01 rad about z; at rest.
     X_WE = RigidTransform(RotationMatrix.MakeZRotation(0.01), [0.49, 0.0, 0.3])
@@ -256,7 +259,7 @@ def test_record_cli_shows_the_scripted_twist(tmp_path, offline_env):
     direction = feature.translations[0] / np.linalg.norm(feature.translations[0])
     assert direction[2] > 0.99  # pushed along the tool axis
     # The arm settled where the script ended.
-    script = mut.guidance_script_from_text(SCREW_SCRIPT)
+    script = scripts.guidance_script_from_text(SCREW_SCRIPT)
     end = dual_quaternion_from_rigid_transform(script.waypoints[-1].X_WE)
     assert _poses_close(D[-1], end, 0.002, math.radians(1.0))
 
@@ -283,7 +286,7 @@ def test_record_cli_bad_script_exits_2_with_one_line(tmp_path, offline_env, text
 @pytest.mark.slow
 def test_unreachable_waypoint_is_reported_as_bad_input():
     text = SCREW_SCRIPT.replace("[0.45, 0.15, 0.27]", "[1.25, 0.15, 0.27]").replace("2.0,", "1.0,")
-    script = mut.guidance_script_from_text(text, file="far.yaml")
+    script = scripts.guidance_script_from_text(text, file="far.yaml")
     with pytest.raises(InputError, match="did not follow the hand") as info:
         mut.record_demonstration(script)
     assert info.value.field == "waypoints[1]"
@@ -319,7 +322,7 @@ def test_bundled_paper6_adds_the_span_demo():
 def test_bundled_span_log_is_reproduced_by_its_script():
     """The bundled logs are what the current code records from the scripts (seeded);
     if this fails, re-run sims/make_paper_libraries.py."""
-    script = mut.load_guidance_script(SIMS / "demos" / "span.yaml")
+    script = scripts.load_guidance_script(SIMS / "demos" / "span.yaml")
     recorded = mut.record_demonstration(script).demonstration
     bundled, _ = read_rtde_csv(SIMS / "demos" / "span.csv")
     np.testing.assert_array_equal(recorded.timestamps, bundled.timestamps)

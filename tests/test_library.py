@@ -11,7 +11,8 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
 import drake_lfd.io.library as mut
-from drake_lfd.io.demonstration_logs import Demonstration, dual_quaternions_from_demonstration
+from drake_lfd.core.demonstrations import Demonstration
+from drake_lfd.robot.kinematics import dual_quaternions_from_demonstration
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
 from drake_lfd.robot.kinematics import UR5eKinematics
@@ -91,15 +92,35 @@ def test_stale_or_missing_cache_is_recomputed_and_rewritten(library, tmp_path):
     root = tmp_path / "lib"
     cache = root / "cache" / "pour.npz"
     reference = np.array(mut.Library.open(root).feature("pour").deltas)
+    fresh = cache.read_bytes()
     cache.write_bytes(b"garbage")
-    np.testing.assert_array_equal(mut.Library.open(root).feature("pour").deltas, reference)
-    assert cache.read_bytes() != b"garbage"
+    dut = mut.Library.open(root)
+    np.testing.assert_array_equal(dut.feature("pour").deltas, reference)
+    assert cache.read_bytes() == b"garbage"  # reading writes nothing
+    assert dut.write_feature_caches() == ("pour",)
+    assert cache.read_bytes() == fresh
+    assert dut.write_feature_caches() == ()  # fresh caches are left alone
     # A cache whose key does not match (another log) is not trusted.
     cache.write_bytes((root / "cache" / "screw_cw.npz").read_bytes())
     np.testing.assert_array_equal(mut.Library.open(root).feature("pour").deltas, reference)
     cache.unlink()
-    np.testing.assert_array_equal(mut.Library.open(root).feature("pour").deltas, reference)
-    assert cache.is_file()
+    dut = mut.Library.open(root)
+    np.testing.assert_array_equal(dut.feature("pour").deltas, reference)
+    assert not cache.exists()
+    assert dut.write_feature_caches() == ("pour",)
+    assert cache.read_bytes() == fresh
+
+
+def test_reading_a_library_writes_nothing(library, tmp_path):
+    root = tmp_path / "lib"
+    for path in (root / "cache").iterdir():
+        path.unlink()
+    before = tree_digest(root)
+    dut = mut.Library.open(root)
+    features = mut.library_features(dut)
+    assert list(features) == ["screw_cw", "pour"]
+    dut.demonstration("pour"), dut.resampled_poses("screw_cw")
+    assert tree_digest(root) == before
 
 
 def test_changed_log_invalidates_cache(library, tmp_path):
@@ -291,6 +312,7 @@ def test_bundled_library_by_name_is_read_only(library, tmp_path, monkeypatch):
     assert dut.read_only and dut.label == "mine"
     before = tree_digest(bundled)
     assert dut.feature("pour") is not None
+    assert dut.write_feature_caches() == ()
     with pytest.raises(InputError, match="read-only"):
         dut.add(make_demo(4), "stack")
     with pytest.raises(InputError, match="read-only"):

@@ -8,7 +8,7 @@ from drake_lfd.core.dual_quaternion import (
     axis_angle_from_quaternion,
     dual_quaternion_canonical,
     dual_quaternion_from_euler_zyx,
-    dual_quaternion_from_pose,
+    dual_quaternion_from_translation_rotation,
     dual_quaternion_multiply,
     dual_quaternion_relative,
     quaternion_from_axis_angle,
@@ -20,6 +20,10 @@ from drake_lfd.core.similarity import Allocation, Tolerances, allocate_features
 
 TOL = 1e-12
 IDENTITY_Q = [1.0, 0.0, 0.0, 0.0]
+
+
+def pure_translation(p):
+    return dual_quaternion_from_translation_rotation(p, IDENTITY_Q)
 
 
 def same_poses(D1, D2, tol=TOL):
@@ -105,13 +109,13 @@ def straight_demo(length, num=100):
     """Straight move of ``length`` along body z, no rotation."""
     start = dual_quaternion_from_euler_zyx([0.4, 0.0, 0.3], [0.0, 0.0, np.pi])
     s = np.linspace(0.0, 1.0, num)[:, None]
-    return dual_quaternion_multiply(start, dual_quaternion_from_pose(s * [0.0, 0.0, length], IDENTITY_Q))
+    return dual_quaternion_multiply(start, pure_translation(s * [0.0, 0.0, length]))
 
 
 def test_scale_is_task_over_demo_length():
     demo = Feature.from_poses(straight_demo(0.1))
     D_j = dual_quaternion_from_euler_zyx([-0.2, 0.3, 0.5], [0.3, 0.2, 0.1])
-    D_k = dual_quaternion_multiply(D_j, dual_quaternion_from_pose([0.3, 0.0, 0.0], IDENTITY_Q))
+    D_k = dual_quaternion_multiply(D_j, pure_translation([0.3, 0.0, 0.0]))
     task = np.stack([D_j, D_k])
     allocation = allocate_features(task_feature_from_poses(task), demo, Tolerances())
     assert list(allocation.indices) == [0]
@@ -164,7 +168,7 @@ def test_alignment_anti_parallel_zero_length_and_twist():
 def test_anti_parallel_segment_reverses_the_demo():
     demo = Feature.from_poses(straight_demo(0.1))
     D_j = dual_quaternion_from_euler_zyx([0.1, 0.1, 0.4], [0.0, 0.0, 0.0])
-    D_k = dual_quaternion_multiply(D_j, dual_quaternion_from_pose([0.0, 0.0, -0.2], IDENTITY_Q))
+    D_k = dual_quaternion_multiply(D_j, pure_translation([0.0, 0.0, -0.2]))
     segment = mut.map_segment(demo.poses, allocation_at([0]), np.stack([D_j, D_k]))
     _, angle = axis_angle_from_quaternion(segment.alignment)
     assert angle == pytest.approx(np.pi)
@@ -177,11 +181,11 @@ def test_demo_returning_to_its_start_keeps_scale_one():
     # Out 5 cm along body x and back: the first translation is zero.
     start = dual_quaternion_from_euler_zyx([0.3, 0.0, 0.3], [0.0, 0.0, np.pi])
     s = np.sin(np.linspace(0.0, np.pi, 101))[:, None]
-    raw = dual_quaternion_multiply(start, dual_quaternion_from_pose(s * [0.05, 0.0, 0.0], IDENTITY_Q))
+    raw = dual_quaternion_multiply(start, pure_translation(s * [0.05, 0.0, 0.0]))
     demo = Feature.from_poses(raw)
     assert np.linalg.norm(demo.translations[0]) < 1e-12
     D_j = dual_quaternion_from_euler_zyx([0.0, 0.4, 0.2], [1.0, 0.0, 0.0])
-    D_k = dual_quaternion_multiply(D_j, dual_quaternion_from_pose([0.0, 0.0, 0.0005], IDENTITY_Q))
+    D_k = dual_quaternion_multiply(D_j, pure_translation([0.0, 0.0, 0.0005]))
     segment = mut.map_segment(demo.poses, allocation_at([0]), np.stack([D_j, D_k]))
     assert segment.scale == 1.0
     np.testing.assert_array_equal(segment.alignment, IDENTITY_Q)
@@ -207,3 +211,51 @@ def test_bad_arguments():
         mut.map_segment(demo.poses, allocation_at([30, 5]), demo.poses[[30, 5, 99]])
     with pytest.raises(ValueError):
         mut.map_segment(demo.poses, allocation_at([99]), demo.poses[[99, 99]])
+
+
+def test_map_segment_rejects_non_unit_poses():
+    demo = curvy_demo()
+    task = demo.poses[[5, 30, 99]]
+    allocation = allocation_at([5, 30])
+    mut.map_segment(demo.poses, allocation, task)
+    bad_demo = np.array(demo.poses)
+    bad_demo[50, :4] *= 1.01
+    with pytest.raises(ValueError, match="demo_poses must be unit dual quaternions"):
+        mut.map_segment(bad_demo, allocation, task)
+    bad_task = np.array(task)
+    bad_task[1, 5] += 0.01  # breaks r . d = 0
+    with pytest.raises(ValueError, match="task_poses must be unit dual quaternions"):
+        mut.map_segment(demo.poses, allocation, bad_task)
+    with pytest.raises(ValueError, match="demo_poses"):
+        mut.map_segment(demo.poses[:, :7], allocation, task)
+    with pytest.raises(ValueError, match="demo_poses"):
+        mut.map_segment(demo.poses[None], allocation, task)
+    with pytest.raises(ValueError, match="twist_rad"):
+        mut.map_segment(demo.poses, allocation, task, twist_rad=np.nan)
+
+
+def test_mapped_poses_from_deltas_and_alignment_check_their_inputs():
+    demo = curvy_demo()
+    deltas, D_final = demo.deltas, demo.poses[-1]
+    np.testing.assert_allclose(mut.mapped_poses_from_deltas(deltas, D_final, IDENTITY_Q, 1.0), demo.poses,
+                               atol=TOL)
+    with pytest.raises(ValueError, match="alignment must be unit quaternions"):
+        mut.mapped_poses_from_deltas(deltas, D_final, [1.0, 0.1, 0.0, 0.0], 1.0)
+    with pytest.raises(ValueError, match="deltas"):
+        mut.mapped_poses_from_deltas(1.1 * deltas, D_final, IDENTITY_Q, 1.0)
+    with pytest.raises(ValueError, match="shapes"):
+        mut.mapped_poses_from_deltas(deltas, demo.poses[-2:], IDENTITY_Q, 1.0)
+    with pytest.raises(ValueError, match="scale"):
+        mut.mapped_poses_from_deltas(deltas, D_final, IDENTITY_Q, np.inf)
+    with pytest.raises(ValueError, match="shape"):
+        mut.alignment_from_translations([[1.0, 0.0, 0.0]] * 2, [0.0, 1.0, 0.0])
+    with pytest.raises(ValueError, match="finite"):
+        mut.alignment_from_translations([np.nan, 0.0, 0.0], [0.0, 1.0, 0.0])
+
+
+def test_returned_alignment_is_not_shared_state():
+    first = mut.alignment_from_translations([0.0, 0.0, 0.0], [0.0, 1.0, 0.0])  # identity branch
+    if first.flags.writeable:
+        first[:] = 0.5
+    again = mut.alignment_from_translations([0.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    np.testing.assert_array_equal(again, IDENTITY_Q)

@@ -53,7 +53,8 @@ def test_simulate_json_is_re_derivable_from_q(tmp_path):
     (trial,) = document["trials"]
     assert len(trial["t"]) == len(trial["q"]) and np.all(np.diff(trial["t"]) <= 0.0100001)
     from drake_lfd.io.pose_records import rigid_transform_from_pose_json
-    from drake_lfd.io.task_files import draw_trial, load_task
+    from drake_lfd.core.tasks import draw_trial
+    from drake_lfd.io.task_files import load_task
 
     task = load_task(scenario)
     check = rederive.rederive_run(

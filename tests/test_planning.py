@@ -1,28 +1,25 @@
 """Planners with hand-built demonstrations: composition, invariance, requests, oracle."""
 
-import itertools
-
 import numpy as np
 import pytest
 
 import drake_lfd.planning.planner as mut
-from drake_lfd.planning.composition import CompositionProblem
 from drake_lfd.core.dual_quaternion import (
     dual_quaternion_from_euler_zyx,
-    dual_quaternion_from_pose,
+    dual_quaternion_from_translation_rotation,
     dual_quaternion_multiply,
     dual_quaternion_relative,
-    pose_from_dual_quaternion,
     quaternion_from_axis_angle,
     rotation_from_dual_quaternion,
     translation_from_dual_quaternion,
+    translation_rotation_from_dual_quaternion,
 )
 from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.q_learning import QPolicy, greedy_walk, plan_q
 from drake_lfd.planning.random_tasks import _euler_zyx_of, chained_task, random_training_task
 from drake_lfd.core.similarity import rotation_distance
 from drake_lfd.core.synthetic_library import PAPER5, PAPER6, synthetic_features
-from drake_lfd.io.task_files import ConcreteCriticalConfiguration, ConcreteTask
+from drake_lfd.core.tasks import ConcreteCriticalConfiguration, ConcreteTask
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +33,7 @@ def paper6():
 
 
 def task_from_poses(poses, name="hand"):
-    p, q = pose_from_dual_quaternion(np.asarray(poses))
+    p, q = translation_rotation_from_dual_quaternion(np.asarray(poses))
     return ConcreteTask.from_fixed(name, p, [_euler_zyx_of(qi) for qi in q])
 
 
@@ -82,7 +79,8 @@ def test_rigid_motion_of_the_task_keeps_composition_and_cost(paper5):
     for _ in range(5):
         task, _ = chained_task(rng, paper5)
         _, poses = mut.task_candidates(task)
-        X = dual_quaternion_from_pose(rng.uniform(-1, 1, 3), quaternion_from_axis_angle(rng.normal(size=3), 2.0))
+        X = dual_quaternion_from_translation_rotation(
+            rng.uniform(-1, 1, 3), quaternion_from_axis_angle(rng.normal(size=3), 2.0))
         moved = task_from_poses(dual_quaternion_multiply(X, np.array([c[0] for c in poses])))
         a, b = mut.plan_task(task, paper5), mut.plan_task(moved, paper5)
         assert [(s.demo, s.con_from, s.con_to) for s in a.composition] == \
@@ -157,18 +155,6 @@ def test_exact_planner_matches_brute_force_with_bounded_angles(paper5):
         assert sum(s.cost for s in steps) == pytest.approx(expected, abs=1e-5)
         solved += 1
     assert solved == 6
-
-
-def test_batched_legal_costs_equal_single_allocations(paper5):
-    rng = np.random.default_rng(8)
-    task, _ = chained_task(rng, paper5, num_cons=4)
-    problem = mut.build_problem(task, paper5)
-    assert problem.cost
-    for (j, k, d), matrix in problem.cost.items():
-        for a_j, a_k in zip(*np.nonzero(np.isfinite(matrix))):
-            from drake_lfd.planning.composition import Step
-            span = problem.span_allocation(Step(d, j, k, a_j, a_k, matrix[a_j, a_k]))
-            assert span.allocation.cost == pytest.approx(matrix[a_j, a_k], abs=1e-6)
 
 
 def test_q_planner_plans_exactly_what_the_exact_planner_plans(paper5):

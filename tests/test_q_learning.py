@@ -5,7 +5,9 @@ import json
 import numpy as np
 import pytest
 
+import drake_lfd.planning.mdp as mdp
 import drake_lfd.planning.q_learning as mut
+from drake_lfd.io.policy_files import POLICY_FORMAT_VERSION, load_policy, save_policy
 from drake_lfd.core.errors import InputError
 from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.planner import build_problem
@@ -40,11 +42,11 @@ def test_learning_improves_the_average_reward(trained):
 
 def test_policy_file_round_trip_and_warm_start(features, trained, tmp_path):
     path = tmp_path / "policy.json"
-    trained.policy.save(path)
-    loaded = mut.QPolicy.load(path)
+    save_policy(trained.policy, path)
+    loaded = load_policy(path)
     assert loaded.values == pytest.approx(trained.policy.values)
     assert loaded.parameters == trained.policy.parameters
-    assert json.loads(path.read_text())["format_version"] == mut.POLICY_FORMAT_VERSION
+    assert json.loads(path.read_text())["format_version"] == POLICY_FORMAT_VERSION
     six = synthetic_features(PAPER6)
     warm = train_on_random_tasks(six, num_tasks=5, episodes=5, seed=1, warm_start=loaded)
     assert warm.policy.training_episodes == loaded.training_episodes + 5
@@ -61,7 +63,46 @@ def test_bad_policy_files_are_input_errors(tmp_path, text, field):
     path = tmp_path / "p.json"
     path.write_text(text)
     with pytest.raises(InputError, match=field):
-        mut.QPolicy.load(path)
+        load_policy(path)
+
+
+def test_greedy_probability_is_saved_and_old_epsilon_files_still_load(trained, tmp_path):
+    path = tmp_path / "policy.json"
+    save_policy(trained.policy, path)
+    document = json.loads(path.read_text())
+    assert document["parameters"]["greedy_probability"] == 0.8 and "epsilon" not in document["parameters"]
+    # A file written before the rename: epsilon meant the probability of the greedy action.
+    parameters = dict(document["parameters"])
+    parameters["epsilon"] = parameters.pop("greedy_probability")
+    parameters["epsilon"] = 0.7
+    document["parameters"] = parameters
+    path.write_text(json.dumps(document))
+    old = load_policy(path)
+    assert old.parameters.greedy_probability == 0.7
+    assert old.values == pytest.approx(trained.policy.values)
+
+
+def test_greedy_probability_is_the_probability_of_the_greedy_action(features):
+    # With probability 1 no action is random, so the seed does not matter; with 0.5 it does.
+    problems = [build_problem(chained_task(np.random.default_rng(s), features)[0], features) for s in range(3)]
+
+    def values(greedy_probability, seed):
+        parameters = mut.QLearningParameters(greedy_probability=greedy_probability, episodes=10)
+        return mut.train(problems, library_demos=list(features), parameters=parameters, seed=seed).policy.values
+
+    assert values(1.0, 1) == values(1.0, 2)
+    assert values(0.5, 1) != values(0.5, 2)
+
+
+def test_planning_layer_writes_no_files():
+    import ast
+    import inspect
+
+    for module in (mut, mdp):
+        tree = ast.parse(inspect.getsource(module))
+        imported = [node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)]
+        imported += [alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names]
+        assert not [name for name in imported if name and name.startswith(("drake_lfd.io", "json", "pathlib"))]
 
 
 def test_refined_greedy_walk_is_near_optimal_and_never_changes_the_policy(features, trained):

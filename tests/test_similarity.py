@@ -1,4 +1,8 @@
-"""Semantic similarity (Eq. 19-21): alpha, beta, the allocation DP, the case study."""
+"""The similarity kernel (Eq. 19-21): alpha, beta, pair costs, the allocation DP, the case study.
+
+The planners' legal-action table runs this same kernel batched; its meaning tests
+through the planner's own code are in ``test_composition.py``.
+"""
 
 import itertools
 
@@ -9,7 +13,7 @@ import drake_lfd.core.similarity as mut
 from drake_lfd.core.synthetic_library import PAPER5, synthetic_features
 from drake_lfd.core.dual_quaternion import (
     dual_quaternion_from_euler_zyx,
-    dual_quaternion_from_pose,
+    dual_quaternion_from_translation_rotation,
     dual_quaternion_multiply,
     quaternion_from_axis_angle,
     quaternion_multiply,
@@ -35,7 +39,7 @@ def test_alpha_is_two_sin_quarter_angle_and_sign_free():
     np.testing.assert_allclose(alpha, 2.0 * np.sin(angles / 4.0), atol=1e-12)
     np.testing.assert_allclose(mut.rotation_distance(-q1, q2), alpha, atol=1e-12)
     assert mut.rotation_distance(q1[0], q2).shape == (50,)  # broadcasting
-    # alpha 0.5 is about 58 deg (SPEC 2).
+    # alpha 0.5 is about 58 deg (docs/method.rst, Conventions).
     assert np.degrees(4 * np.arcsin(0.25)) == pytest.approx(57.9, abs=0.1)
 
 
@@ -54,26 +58,72 @@ def test_translation_cosine_and_short_translations():
     np.testing.assert_allclose(beta, [[-1.0, 1.0], [1.0, -1.0]])
 
 
-def test_matrices_agree_with_pairwise_functions():
+def independent_alpha(q1, q2):
+    """2 sin(theta / 4), theta = 2 arccos |q1 . q2| the relative rotation angle."""
+    theta = 2.0 * np.arccos(np.clip(abs(np.dot(q1, q2)), 0.0, 1.0))
+    return 2.0 * np.sin(theta / 4.0)
+
+
+def independent_beta(t1, t2, min_length_m=1e-3):
+    short1, short2 = np.linalg.norm(t1) < min_length_m, np.linalg.norm(t2) < min_length_m
+    if short1 or short2:
+        return 1.0 if short1 and short2 else -1.0
+    return float(np.dot(t1, t2) / (np.linalg.norm(t1) * np.linalg.norm(t2)))
+
+
+def test_kernel_matrices_against_independent_formulas():
     rng = np.random.default_rng(1)
     tr, dr = random_unit_quaternions(rng, 3), random_unit_quaternions(rng, 7)
     tt, dt = rng.normal(size=(3, 3)), rng.normal(size=(7, 3))
     dt[2] *= 1e-4  # a short demo translation
+    tt[1] *= 1e-4  # a short task translation
     alpha, beta = mut.alpha_beta_matrices(tr, tt, dr, dt)
-    np.testing.assert_allclose(alpha, mut.rotation_distance(tr[:, None], dr[None]), atol=1e-7)
+    assert alpha.shape == beta.shape == (3, 7)
+    for l, i in itertools.product(range(3), range(7)):
+        assert alpha[l, i] == pytest.approx(independent_alpha(tr[l], dr[i]), abs=1e-7)
+        assert beta[l, i] == pytest.approx(independent_beta(tt[l], dt[i]), abs=1e-12)
     np.testing.assert_allclose(beta, mut.translation_cosine(tt[:, None], dt[None]), atol=1e-12)
+    cost = mut.pair_costs(tr, tt, dr, dt, mut.Tolerances(d_alpha=1.0, d_beta=0.0))
+    similar = (alpha <= 1.0) & (beta >= 0.0)
+    np.testing.assert_array_equal(cost, np.where(similar, alpha, np.inf))
 
 
-def brute_force(alpha, beta, tolerances):
-    p, n = alpha.shape
+def test_kernel_broadcasts_over_leading_dimensions():
+    rng = np.random.default_rng(3)
+    tr, tt = random_unit_quaternions(rng, 2 * 3).reshape(2, 1, 3, 4), rng.normal(size=(2, 1, 3, 3))
+    dr, dt = random_unit_quaternions(rng, 4 * 5).reshape(4, 5, 4), rng.normal(size=(4, 5, 3))
+    tolerances = mut.Tolerances(d_alpha=1.2, d_beta=-0.5)
+    cost = mut.pair_costs(tr, tt, dr, dt, tolerances)
+    assert cost.shape == (2, 4, 3, 5)
+    for a, b in itertools.product(range(2), range(4)):
+        np.testing.assert_array_equal(cost[a, b], mut.pair_costs(tr[a, 0], tt[a, 0], dr[b], dt[b], tolerances))
+    table = mut.allocation_table(cost)
+    for a, b in itertools.product(range(2), range(4)):
+        np.testing.assert_array_equal(table[a, b], mut.allocation_table(cost[a, b]))
+    step = mut.allocation_step(table[:, :, 0, :], cost[:1, :1, 1, :])  # (2, 4, 5) with (1, 1, 5)
+    np.testing.assert_array_equal(step[1, 2], mut.allocation_step(table[1, 2, 0], cost[0, 0, 1]))
+
+
+def test_allocation_step_is_strictly_ordered():
+    # Delta 2 may follow delta 1 only at a later demo index.
+    previous = np.array([0.1, np.inf, np.inf, 0.3])
+    row = np.array([0.0, np.inf, 0.2, 0.0])
+    np.testing.assert_allclose(mut.allocation_step(previous, row), [np.inf, np.inf, 0.1 + 0.2, 0.1])
+    # Two deltas that match only demo index 0: no allocation.
+    assert not np.isfinite(mut.allocation_step([0.1, np.inf], [0.1, np.inf])).any()
+    table = mut.allocation_table([[0.1, np.inf], [0.1, np.inf]])
+    assert mut.allocation_backtrack(table) is None
+
+
+def brute_force(tr, tt, dr, dt, tolerances):
+    p, n = len(tr), len(dr)
     best = None
     for indices in itertools.combinations(range(n), p):
-        rows = np.arange(p)
-        valid = (alpha[rows, indices] <= tolerances.d_alpha) & (beta[rows, indices] >= tolerances.d_beta)
-        if np.all(valid):
-            cost = alpha[rows, indices].sum()
-            if best is None or cost < best:
-                best = cost
+        alphas = [independent_alpha(tr[l], dr[i]) for l, i in enumerate(indices)]
+        betas = [independent_beta(tt[l], dt[i]) for l, i in enumerate(indices)]
+        if all(a <= tolerances.d_alpha for a in alphas) and all(b >= tolerances.d_beta for b in betas):
+            if best is None or sum(alphas) < best:
+                best = sum(alphas)
     return best
 
 
@@ -90,8 +140,7 @@ def test_allocation_is_valid_and_minimal_against_brute_force():
         dr /= np.linalg.norm(dr, axis=1, keepdims=True)
         tt, dt = rng.normal(size=(p, 3)), rng.normal(size=(n, 3))
         allocation = mut.allocate(tr, tt, dr, dt, tolerances)
-        alpha, beta = mut.alpha_beta_matrices(tr, tt, dr, dt)
-        expected = brute_force(alpha, beta, tolerances)
+        expected = brute_force(tr, tt, dr, dt, tolerances)
         if expected is None:
             assert allocation is None
             continue
@@ -99,12 +148,28 @@ def test_allocation_is_valid_and_minimal_against_brute_force():
         assert allocation is not None
         indices = allocation.indices
         assert indices.shape == (p,) and np.all(np.diff(indices) > 0)
-        rows = np.arange(p)
-        assert np.all(alpha[rows, indices] <= tolerances.d_alpha)
-        assert np.all(beta[rows, indices] >= tolerances.d_beta)
+        for l, i in enumerate(indices):
+            assert independent_alpha(tr[l], dr[i]) <= tolerances.d_alpha + 1e-9
+            assert independent_beta(tt[l], dt[i]) >= tolerances.d_beta - 1e-9
         assert allocation.cost == pytest.approx(expected, abs=1e-7)
         np.testing.assert_allclose(allocation.alphas, mut.rotation_distance(tr, dr[indices]), atol=1e-15)
     assert 40 < found < 190  # both outcomes exercised
+
+
+def test_allocation_tolerances_are_inclusive():
+    turn = quaternion_from_axis_angle(Z_AXIS, 0.8)
+    x = [[0.25, 0, 0]]
+    alpha, _ = mut.alpha_beta_matrices([[1.0, 0, 0, 0]], x, [turn], x)
+    d_alpha = float(alpha[0, 0])
+    assert mut.allocate([[1.0, 0, 0, 0]], x, [turn], x, mut.Tolerances(d_alpha=d_alpha)) is not None
+    assert mut.allocate([[1.0, 0, 0, 0]], x, [turn], x,
+                        mut.Tolerances(d_alpha=np.nextafter(d_alpha, 0.0))) is None
+    back = [[-0.1, 0.03, 0]]
+    _, beta = mut.alpha_beta_matrices([[1.0, 0, 0, 0]], x, [[1.0, 0, 0, 0]], back)
+    d_beta = float(beta[0, 0])
+    assert mut.allocate([[1.0, 0, 0, 0]], x, [[1.0, 0, 0, 0]], back, mut.Tolerances(d_beta=d_beta)) is not None
+    assert mut.allocate([[1.0, 0, 0, 0]], x, [[1.0, 0, 0, 0]], back,
+                        mut.Tolerances(d_beta=np.nextafter(d_beta, 1.0))) is None
 
 
 def test_allocation_prefers_order_and_least_alpha():
@@ -144,7 +209,7 @@ def test_allocation_applies_the_short_translation_rule():
     assert list(a.indices) == [0, 2]
 
 
-# ---- the paper's case study (Section 6, SPEC 2 and 10) --------------------------------
+# ---- the paper's case study (Section 6; docs/method.rst, Similarity) ----------------
 
 @pytest.fixture(scope="module")
 def library():
@@ -154,7 +219,8 @@ def library():
 def segment(body_axis, angle, body_translation):
     """Task poses of a one-step segment starting somewhere else in the workspace."""
     D_j = dual_quaternion_from_euler_zyx([-0.3, 0.2, 0.4], [0.7, 0.2, -2.5])
-    step = dual_quaternion_from_pose(body_translation, quaternion_from_axis_angle(body_axis, angle))
+    step = dual_quaternion_from_translation_rotation(
+        body_translation, quaternion_from_axis_angle(body_axis, angle))
     D_k = dual_quaternion_multiply(D_j, step)
     return task_feature_from_poses(np.stack([D_j, D_k]))
 
@@ -174,7 +240,7 @@ def test_library_first_deltas_match_table5_rotations(library):
 
 
 def test_body_x_quarter_turn_is_covered_by_no_demo(library):
-    # The assembling task's con_2 -> con_3 (SPEC 2): +90 deg about body x.
+    # The assembling task's con_2 -> con_3: +90 deg about body x.
     assert matches(library, segment(X_AXIS, np.pi / 2, [0, 0, 0.1])) == {}
     assert matches(library, segment(X_AXIS, np.pi / 2, [0.1, 0.05, 0])) == {}
 

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
+import drake_lfd.core.tasks as tasks
 import drake_lfd.io.task_files as mut
+from drake_lfd.io.yaml_checks import angle_from_text
 from drake_lfd.core.errors import InputError
 
 DATA = Path(__file__).parent / "data"
@@ -68,7 +70,7 @@ def test_table7_transferring_loads_as_written():
     assert constraint.tolerance_rad == pytest.approx(math.radians(10))
     # Table 7's single z: con_2 and con_3 always share it.
     for seed in range(20):
-        trial = mut.draw_trial(task, seed)
+        trial = tasks.draw_trial(task, seed)
         z2, z3 = trial.positions[1, 2], trial.positions[2, 2]
         assert z2 == z3
         assert 0.1 <= z2 <= 0.5
@@ -79,7 +81,7 @@ def test_table7_transferring_loads_as_written():
 def test_table8_filling_pouring_shares_cup_position_and_frees_gamma():
     task = mut.load_task(DATA / "table8_filling_pouring.yaml")
     assert len(task) == 5
-    trial = mut.draw_trial(task, 7)
+    trial = tasks.draw_trial(task, 7)
     p4, p5 = trial.positions[3], trial.positions[4]
     np.testing.assert_array_equal(p4[:2], p5[:2])
     assert (p4[2], p5[2]) == (0.1, 0.0)
@@ -90,7 +92,7 @@ def test_table8_filling_pouring_shares_cup_position_and_frees_gamma():
     np.testing.assert_array_equal(cons[4].euler_zyx, [PI / 2, 0, -PI / 2])
     for con in cons[1:4]:
         assert not con.is_orientation_fixed
-        candidates = mut.angle_candidates(con)
+        candidates = tasks.angle_candidates(con)
         # gamma on a 15 deg grid over [-pi, pi], bounds included: 25 values.
         assert candidates.shape == (25, 3)
         np.testing.assert_array_equal(candidates[:, :2], np.tile([0, -PI / 2], (25, 1)))
@@ -102,13 +104,13 @@ def test_table8_filling_pouring_shares_cup_position_and_frees_gamma():
 
 def test_table9_assembling_is_fixed():
     task = mut.load_task(DATA / "table9_assembling.yaml")
-    trial = mut.draw_trial(task, 0)
+    trial = tasks.draw_trial(task, 0)
     expected_p = [(0, 0.5, 0.6), (0.1, 0.5, 0.6), (0.5, 0.1, 0.6), (0.5, 0, 0.6)]
     expected_euler = [(-PI / 2, 0, PI / 2), (0, -PI / 2, 0), (0, -PI / 2, PI / 2), (PI, 0, -PI / 2)]
     np.testing.assert_array_equal(trial.positions, expected_p)
     for con, euler in zip(trial.critical_configurations, expected_euler):
         np.testing.assert_array_equal(con.euler_zyx, euler)
-        assert mut.angle_candidates(con).shape == (1, 3)
+        assert tasks.angle_candidates(con).shape == (1, 3)
     assert task.obstacles == () and task.path_constraints == ()
     assert np.array_equal(task.X_WB.GetAsMatrix4(), np.eye(4))
     assert np.array_equal(task.X_tool0_E.GetAsMatrix4(), np.eye(4))
@@ -129,8 +131,8 @@ def test_full_schema_every_value_form():
     np.testing.assert_allclose(second.euler_zyx_upper, [PI / 2, PI / 4, 0.25])
     np.testing.assert_array_equal(third.p_lower, [0.6, 1e-3, 0.3])  # PyYAML reads 1e-3 as text
     np.testing.assert_allclose(third.euler_zyx_lower, [3 * PI / 4, 0, -PI / 2])
-    trial = mut.draw_trial(task, 3)
-    candidates = mut.angle_candidates(trial.critical_configurations[1])
+    trial = tasks.draw_trial(task, 3)
+    candidates = tasks.angle_candidates(trial.critical_configurations[1])
     # pitch over [-45, 45] deg on a 30 deg grid: 4 samples 30 deg apart, bounds included
     np.testing.assert_allclose(candidates[:, 1], np.linspace(-PI / 4, PI / 4, 4))
     assert trial.positions[0, 2] == trial.positions[1, 2]
@@ -216,26 +218,26 @@ def test_boxes_and_constraints_are_checked(tmp_path):
 def test_draw_trial_is_reproducible_and_within_ranges(tmp_path):
     text = MINIMAL.replace("[0.5, 0, 0.3]", "[[0.4, 0.6], [-0.1, 0.1], h]") + "variables: {h: [0.2, 0.3]}\n"
     task = mut.load_task(write(tmp_path, text))
-    first = mut.draw_trial(task, 11)
-    again = mut.draw_trial(task, 11)
+    first = tasks.draw_trial(task, 11)
+    again = tasks.draw_trial(task, 11)
     np.testing.assert_array_equal(first.positions, again.positions)
     assert first.seed == 11
-    draws = np.array([mut.draw_trial(task, seed).positions[1] for seed in range(200)])
+    draws = np.array([tasks.draw_trial(task, seed).positions[1] for seed in range(200)])
     assert np.all(draws >= [0.4, -0.1, 0.2]) and np.all(draws <= [0.6, 0.1, 0.3])
     # The ranges are really used: the draws spread over most of each range.
     assert np.all(draws.max(axis=0) - draws.min(axis=0) > [0.15, 0.15, 0.07])
     assert len({tuple(row) for row in draws}) == 200
     with pytest.raises(InputError, match="seed"):
-        mut.draw_trial(task, -1)
+        tasks.draw_trial(task, -1)
 
 
 def test_angle_grid_includes_bounds_within_step():
     step = math.radians(15)
-    grid = mut.angle_grid(-1.0, 1.0, step)
+    grid = tasks.angle_grid(-1.0, 1.0, step)
     assert grid[0] == -1.0 and grid[-1] == 1.0
     assert np.all(np.diff(grid) <= step + 1e-12)
     assert len(grid) == math.ceil(2.0 / step) + 1
-    np.testing.assert_array_equal(mut.angle_grid(0.3, 0.3, step), [0.3])
+    np.testing.assert_array_equal(tasks.angle_grid(0.3, 0.3, step), [0.3])
 
 
 @pytest.mark.parametrize(
@@ -244,17 +246,17 @@ def test_angle_grid_includes_bounds_within_step():
      ("1.25", 1.25), ("+pi", PI), ("2 * pi / 3", 2 * PI / 3)],
 )
 def test_angle_text(text, value):
-    assert mut.angle_from_text(text) == pytest.approx(value, abs=1e-15)
+    assert angle_from_text(text) == pytest.approx(value, abs=1e-15)
 
 
 @pytest.mark.parametrize("text", ["pie", "pi/0", "90 degrees", "x", ""])
 def test_angle_text_refused(text):
-    assert mut.angle_from_text(text) is None
+    assert angle_from_text(text) is None
 
 
 def test_euler_zyx_is_rz_ry_rx():
     yaw, pitch, roll = 0.3, -0.7, 1.1
-    X = mut.rigid_transform_from_euler_zyx([1, 2, 3], [yaw, pitch, roll])
+    X = tasks.rigid_transform_from_euler_zyx([1, 2, 3], [yaw, pitch, roll])
     R = (
         RotationMatrix.MakeZRotation(yaw) @ RotationMatrix.MakeYRotation(pitch) @ RotationMatrix.MakeXRotation(roll)
     )
@@ -265,7 +267,7 @@ def test_euler_zyx_is_rz_ry_rx():
 def test_concrete_task_from_fixed():
     positions = np.array([[0.4, 0, 0.3], [0.5, 0.1, 0.2]])
     euler = np.array([[0, PI / 2, 0], [PI, 0, 0]])
-    task = mut.ConcreteTask.from_fixed("random", positions, euler)
+    task = tasks.ConcreteTask.from_fixed("random", positions, euler)
     np.testing.assert_array_equal(task.positions, positions)
     assert len(task) == 2
     np.testing.assert_array_equal(task.critical_configurations[1].euler_zyx, euler[1])

@@ -34,14 +34,14 @@ from pathlib import Path
 import numpy as np
 
 from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure
-from drake_lfd.robot.kinematics import shared_kinematics
-from drake_lfd.io.library import Library, check_end_effector_frame
-from drake_lfd.io.library_access import library_features
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.io.library import Library, check_end_effector_frame, library_features
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.planning.planner import plan_task
 from drake_lfd.robot.scene import table_under_robot
 from drake_lfd.experiments.simulation import composition_counts, run_trials, simulate_json, trial_summary_line
-from drake_lfd.io.task_files import draw_trial, load_task
+from drake_lfd.core.tasks import draw_trial
+from drake_lfd.io.task_files import load_task
 
 NAME = "01_transferring"
 
@@ -120,7 +120,7 @@ def main(argv=None) -> dict:
 
     # -- 5. Closed-loop trials -------------------------------------------------------------
     # run_trials draws trial i with seed S + i - 1, plans it, tracks the plan on the
-    # simulated UR5e (differential IK), and judges the run (SPEC 9): every con within
+    # simulated UR5e (differential IK), and judges the run (docs/method.rst, Closed loop and success): every con within
     # 5 mm / 2 deg, the cup within 10 deg of upright from con_1 to con_4, no contact with
     # the obstacle or the shell, joints within their position and speed limits. The first
     # trial is recorded as a self-contained Meshcat HTML file.
@@ -146,7 +146,7 @@ def main(argv=None) -> dict:
     ran = next((o for o in outcomes if o.run is not None), None)
     joints_png = None
     if ran is not None:
-        kinematics = shared_kinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+        kinematics = UR5eKinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
         lower, upper = kinematics.position_limits()
         joints_png = joint_trajectories_figure(
             out / "transferring_joints.png", ran.run.t, ran.run.q, lower=lower, upper=upper,
@@ -156,7 +156,7 @@ def main(argv=None) -> dict:
         print(f"wrote {joints_png}")
 
     # -- 7. A summary a script can read --------------------------------------------------
-    # The same document as `drake-lfd simulate --json` (INTERFACES.md).
+    # The same document as `drake-lfd simulate --json` (docs/cli.rst).
     document = simulate_json(task, outcomes, wall)
     (out / "transferring_trials.json").write_text(json.dumps(document, indent=1) + "\n")
     summary = {

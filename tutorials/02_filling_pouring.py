@@ -27,15 +27,16 @@ from pathlib import Path
 import numpy as np
 
 from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure, training_curve_figure
-from drake_lfd.robot.kinematics import shared_kinematics
-from drake_lfd.io.library import Library, check_end_effector_frame
-from drake_lfd.io.library_access import library_features
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.io.library import Library, check_end_effector_frame, library_features
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.planning.planner import plan_task
+from drake_lfd.io.policy_files import save_policy
 from drake_lfd.planning.q_learning import episodes_to_steady
 from drake_lfd.robot.scene import table_under_robot
 from drake_lfd.experiments.simulation import composition_counts, run_trials, simulate_json, trial_summary_line
-from drake_lfd.io.task_files import draw_trial, load_task
+from drake_lfd.core.tasks import draw_trial
+from drake_lfd.io.task_files import load_task
 from drake_lfd.planning.training import train_on_random_tasks
 
 NAME = "02_filling_pouring"
@@ -114,7 +115,7 @@ def main(argv=None) -> dict:
           f"greedy reward steady after {steady} episodes (last 10: {training.greedy_curve[-10:].mean():.2f}); "
           f"{len(training.policy.values)} table entries")
     policy_path = out / "policy.json"
-    training.policy.save(policy_path)
+    save_policy(training.policy, policy_path)
     curve_png = training_curve_figure(out / "filling_pouring_training.png", training.greedy_curve,
                                       steady_episode=steady, exploring=training.curve,
                                       title=f"Q-learning on {num_tasks} random tasks (Fig. 7)")
@@ -161,7 +162,7 @@ def main(argv=None) -> dict:
     ran = next((o for o in outcomes if o.run is not None), None)
     joints_png = None
     if ran is not None:
-        kinematics = shared_kinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+        kinematics = UR5eKinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
         lower, upper = kinematics.position_limits()
         joints_png = joint_trajectories_figure(
             out / "filling_pouring_joints.png", ran.run.t, ran.run.q, lower=lower, upper=upper,

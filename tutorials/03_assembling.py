@@ -30,16 +30,17 @@ from pathlib import Path
 import numpy as np
 
 from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure, training_curve_figure
-from drake_lfd.robot.kinematics import shared_kinematics
-from drake_lfd.io.library import Library, check_end_effector_frame
-from drake_lfd.io.library_access import library_features
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.io.library import Library, check_end_effector_frame, library_features
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.io.plan_json import describe_uncovered, plan_json
 from drake_lfd.planning.planner import build_problem, plan_task
+from drake_lfd.io.policy_files import save_policy
 from drake_lfd.planning.q_learning import episodes_to_steady
 from drake_lfd.robot.scene import table_under_robot
 from drake_lfd.experiments.simulation import composition_counts, run_trials, simulate_json, trial_summary_line
-from drake_lfd.io.task_files import draw_trial, load_task
+from drake_lfd.core.tasks import draw_trial
+from drake_lfd.io.task_files import load_task
 from drake_lfd.planning.training import train_on_random_tasks
 
 NAME = "03_assembling"
@@ -133,7 +134,7 @@ def main(argv=None) -> dict:
           f"{warm.wall_time_s:.2f} s: the greedy reward on assembling is steady after {steady_warm} episodes "
           f"(warm start) vs {steady_cold} (cold start); final {warm_curve[-1]:.4f} (warm) / {cold_curve[-1]:.4f} (cold)")
     policy_path = out / "policy_paper6.json"
-    warm.policy.save(policy_path)
+    save_policy(warm.policy, policy_path)
     curve_png = training_curve_figure(out / "assembling_retraining.png", warm_curve, steady_episode=steady_warm,
                                       exploring=warm.rewards[:, -1],
                                       title="Assembling after the new demonstration (Fig. 10c)")
@@ -178,7 +179,7 @@ def main(argv=None) -> dict:
     ran = next((o for o in outcomes if o.run is not None), None)
     joints_png = None
     if ran is not None:
-        kinematics = shared_kinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+        kinematics = UR5eKinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
         lower, upper = kinematics.position_limits()
         joints_png = joint_trajectories_figure(
             out / "assembling_joints.png", ran.run.t, ran.run.q, lower=lower, upper=upper,

@@ -40,17 +40,19 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from drake_lfd.io.demonstration_logs import read_rtde_csv, write_rtde_csv
 from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure
-from drake_lfd.robot.kinematics import shared_kinematics
-from drake_lfd.diagrams.kinesthetic import load_guidance_script, record_demonstration
-from drake_lfd.io.library import MANIFEST_NAME, Library, check_end_effector_frame
-from drake_lfd.io.library_access import library_features
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.io.guidance_scripts import load_guidance_script
+from drake_lfd.diagrams.kinesthetic import record_demonstration
+from drake_lfd.io.library import Library, check_end_effector_frame, library_features
+from drake_lfd.io.library_manifest import MANIFEST_NAME
 from drake_lfd.diagrams.model_preview import write_configurations_html
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.io.plan_json import describe_uncovered
 from drake_lfd.planning.planner import plan_task
 from drake_lfd.robot.scene import table_under_robot
 from drake_lfd.experiments.simulation import run_trials, trial_summary_line
-from drake_lfd.io.task_files import draw_trial, load_task, rigid_transform_from_euler_zyx
+from drake_lfd.core.tasks import draw_trial, rigid_transform_from_euler_zyx
+from drake_lfd.io.task_files import load_task
 
 NAME = "04_record_your_own"
 DEMO_NAME = "roll_carry"
@@ -180,7 +182,7 @@ def main(argv=None) -> dict:
     print(f"wrote {csv_path}")
 
     # A look at the demonstration: its joints over time, and a 3D replay (30 frames/s).
-    kinematics = shared_kinematics(X_WB=script.X_WB, X_tool0_E=script.X_tool0_E)
+    kinematics = UR5eKinematics(X_WB=script.X_WB, X_tool0_E=script.X_tool0_E)
     lower, upper = kinematics.position_limits()
     demo_joints_png = joint_trajectories_figure(
         out / f"{DEMO_NAME}_joints.png", from_file.timestamps, from_file.joint_positions, lower=lower,

@@ -2,7 +2,7 @@
 
 Each command lives in its own module exposing ``add_parser(subparsers)``, which
 registers a subparser whose ``func(args) -> int`` does the work. This module only wires
-them together and turns errors into the exit codes of INTERFACES.md: 2 for bad input
+them together and turns errors into the exit codes of docs/cli.rst: 2 for bad input
 (one line on stderr, no traceback), 3 for a demonstration request, 1 for anything else.
 """
 

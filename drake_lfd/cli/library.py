@@ -1,6 +1,6 @@
 """``drake-lfd library add|show|remove``: manage a demonstration library from the shell.
 
-A thin front end over :mod:`drake_lfd.io.library` (INTERFACES.md):
+A thin front end over :mod:`drake_lfd.io.library` (documented in docs/cli.rst):
 
 - ``library add LIB DEMO.csv --name NAME [--description TEXT]`` reads a UR RTDE joint
   log (or the project's own CSV) and adds it. If ``LIB`` does not exist (or is an empty
@@ -17,8 +17,13 @@ A thin front end over :mod:`drake_lfd.io.library` (INTERFACES.md):
   the way (``delta`` at 0, 50 and 75 % of the resampled motion, like the paper's Table
   5), as a quaternion (w, x, y, z) and as axis-angle, with the direction of the delta's
   translation (in the frame of that sample). ``--json OUT`` also writes the
-  machine-readable listing (``-`` writes it to stdout instead of the table).
+  machine-readable listing (``-`` writes it to stdout instead of the table). First it
+  writes the missing or stale feature caches of a user's library
+  (``Library.write_feature_caches``; reading a library writes nothing by itself).
 - ``library remove LIB NAME`` removes one demonstration.
+
+Not for: the library's files and their guarantees (:mod:`drake_lfd.io.library`), the
+other commands (one module each in ``drake_lfd/cli``).
 """
 
 from __future__ import annotations
@@ -30,18 +35,25 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_lfd.io.demonstration_logs import read_rtde_csv
 from drake_lfd.core.dual_quaternion import axis_angle_from_quaternion
 from drake_lfd.core.errors import EXIT_OK, InputError
-from drake_lfd.io.library import (
-    END_EFFECTOR_FRAME_TOLERANCE,
-    MANIFEST_NAME,
-    Library,
-    bundled_library_names,
-    check_demo_name,
-)
+from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
+from drake_lfd.io.demonstration_logs import read_rtde_csv
+from drake_lfd.io.library import END_EFFECTOR_FRAME_TOLERANCE, Library, bundled_library_names
+from drake_lfd.io.library_manifest import MANIFEST_NAME, check_demo_name
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
-from drake_lfd.io.task_files import angle_from_text, rigid_transform_from_euler_zyx
+from drake_lfd.io.yaml_checks import angle_from_text
+
+__all__ = [
+    "SUMMARY_FRACTIONS",
+    "add_parser",
+    "run_add",
+    "feature_summary",
+    "library_listing",
+    "format_listing",
+    "run_show",
+    "run_remove",
+]
 
 # Where along the feature ``show`` samples its rotation (fractions of the deltas).
 SUMMARY_FRACTIONS = (("start", 0.0), ("middle", 0.5), ("late", 0.75))
@@ -195,7 +207,7 @@ def feature_summary(feature):
 
 
 def library_listing(library):
-    """The ``library show --json`` document (INTERFACES.md), plus optional fields:
+    """The ``library show --json`` document (docs/cli.rst), plus optional fields:
     ``read_only``, and per demonstration ``added`` and ``feature`` (resampled sample
     count and :func:`feature_summary`)."""
     demos = []
@@ -261,6 +273,7 @@ def format_listing(listing):
 
 def run_show(args):
     library = Library.open(args.library)
+    library.write_feature_caches()  # a user's library keeps fresh caches; bundled ones none
     listing = library_listing(library)
     if args.json == "-":
         print(json.dumps(listing, indent=2))

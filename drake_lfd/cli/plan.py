@@ -1,4 +1,9 @@
-"""``drake-lfd plan``: one SE(3) motion plan for a task, or a demonstration request."""
+"""``drake-lfd plan``: one SE(3) motion plan for a task, or a demonstration request.
+
+A thin front end (docs/cli.rst): it loads the task and the library, refreshes the
+library's feature caches, plans and prints. Not for: planning itself
+(:mod:`drake_lfd.planning.planner`) or the plan's JSON (:mod:`drake_lfd.io.plan_json`).
+"""
 
 from __future__ import annotations
 
@@ -10,6 +15,9 @@ from drake_lfd.cli.argument_checks import require_seed
 from drake_lfd.io.atomic_files import atomic_write_json
 from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, InputError
 from drake_lfd.planning.planner import PLANNERS
+
+
+__all__ = ["add_parser", "load_policy_for", "run"]
 
 
 def add_parser(subparsers) -> None:
@@ -32,21 +40,21 @@ def add_parser(subparsers) -> None:
 
 def load_policy_for(args):
     """The Q-policy named by ``--policy`` (None for the exact planner)."""
-    from drake_lfd.planning.q_learning import QPolicy
+    from drake_lfd.io.policy_files import load_policy
 
     if args.planner != "q":
         return None
     if not args.policy:
         raise InputError("--planner q needs --policy POLICY (train one with drake-lfd train)", field="--policy")
-    return QPolicy.load(args.policy)
+    return load_policy(args.policy)
 
 
 def run(args) -> int:
-    from drake_lfd.io.library import Library, check_end_effector_frame
-    from drake_lfd.io.library_access import library_features
+    from drake_lfd.io.library import Library, check_end_effector_frame, library_features
     from drake_lfd.io.plan_json import describe_uncovered, plan_json
     from drake_lfd.planning.planner import plan_task
-    from drake_lfd.io.task_files import draw_trial, load_task
+    from drake_lfd.core.tasks import draw_trial
+    from drake_lfd.io.task_files import load_task
 
     require_seed(args.seed)
     task = load_task(args.task)
@@ -54,6 +62,7 @@ def run(args) -> int:
     check_end_effector_frame(library, task.X_tool0_E, file=args.task)
     policy = load_policy_for(args)
     trial = draw_trial(task, args.seed)
+    library.write_feature_caches()
     result = plan_task(trial, library_features(library), planner=args.planner, policy=policy, seed=args.seed)
     if args.json:
         atomic_write_json(Path(args.json), plan_json(result))

@@ -15,7 +15,8 @@ from pathlib import Path
 
 from drake_lfd.io.demonstration_logs import write_rtde_csv
 from drake_lfd.core.errors import InputError
-from drake_lfd.diagrams.kinesthetic import load_guidance_script, record_demonstration
+from drake_lfd.io.guidance_scripts import load_guidance_script
+from drake_lfd.diagrams.kinesthetic import record_demonstration
 
 
 def add_parser(subparsers) -> None:

@@ -1,4 +1,9 @@
-"""``drake-lfd simulate``: closed-loop UR5e runs of N concrete trials of a task."""
+"""``drake-lfd simulate``: closed-loop UR5e runs of N concrete trials of a task.
+
+A thin front end (docs/cli.rst): it loads the task and the library, refreshes the
+library's feature caches, runs the trials and writes what was asked. Not for: running
+or judging trials (:mod:`drake_lfd.experiments.simulation`).
+"""
 
 from __future__ import annotations
 
@@ -10,6 +15,9 @@ from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, InputError
 from drake_lfd.planning.planner import PLANNERS
 
 
+__all__ = ["add_parser", "run"]
+
+
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "simulate",
@@ -17,7 +25,7 @@ def add_parser(subparsers) -> None:
         description=(
             "Draw N concrete trials of TASK.yaml (trial i uses seed S + i), plan each with the "
             "library, track the plan with differential IK on a simulated UR5e, monitor the "
-            "safety shells, and judge each run (SPEC 9)."
+            "safety shells, and judge each run (docs/method.rst, Closed loop and success)."
         ),
     )
     parser.add_argument("task", metavar="TASK.yaml")
@@ -35,8 +43,7 @@ def add_parser(subparsers) -> None:
 
 def run(args) -> int:
     from drake_lfd.cli.plan import load_policy_for
-    from drake_lfd.io.library import Library, check_end_effector_frame
-    from drake_lfd.io.library_access import library_features
+    from drake_lfd.io.library import Library, check_end_effector_frame, library_features
     from drake_lfd.cli.progress import ProgressBar
     from drake_lfd.experiments.simulation import run_trials, simulate_json, trial_summary_line, write_trial_figures
     from drake_lfd.io.task_files import load_task
@@ -58,6 +65,7 @@ def run(args) -> int:
         lines.append(trial_summary_line(outcome))
         bar.update(done, "ok" if outcome.success else "failed")
 
+    library.write_feature_caches()
     outcomes, wall = run_trials(
         task, library_features(library), trials=args.trials, seed=args.seed, planner=args.planner,
         policy=policy, record_html=args.html, progress=progress,

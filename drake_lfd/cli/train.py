@@ -1,4 +1,9 @@
-"""``drake-lfd train``: Q-learning of a general policy on random tasks (Algorithm 1)."""
+"""``drake-lfd train``: Q-learning of a general policy on random tasks (Algorithm 1).
+
+A thin front end (docs/cli.rst): it loads the library, refreshes its feature caches,
+trains and writes the policy and its curve. Not for: the learning itself
+(:mod:`drake_lfd.planning.training`, :mod:`drake_lfd.planning.q_learning`).
+"""
 
 from __future__ import annotations
 
@@ -7,6 +12,9 @@ from pathlib import Path
 from drake_lfd.cli.argument_checks import require_at_least, require_folder_of, require_seed
 from drake_lfd.io.atomic_files import atomic_write_json
 from drake_lfd.core.errors import InputError
+
+
+__all__ = ["add_parser", "curve_figure_path", "run"]
 
 
 def add_parser(subparsers) -> None:
@@ -40,10 +48,10 @@ def curve_figure_path(policy_path: Path) -> Path:
 
 def run(args) -> int:
     from drake_lfd.experiments.figures import training_curve_figure
-    from drake_lfd.io.library import Library
-    from drake_lfd.io.library_access import library_features
+    from drake_lfd.io.library import Library, library_features
     from drake_lfd.cli.progress import ProgressBar
-    from drake_lfd.planning.q_learning import QPolicy, episodes_to_steady
+    from drake_lfd.io.policy_files import load_policy, save_policy
+    from drake_lfd.planning.q_learning import episodes_to_steady
     from drake_lfd.planning.training import train_on_random_tasks
 
     from drake_lfd.planning.training import DEFAULT_CHAINED_TASKS
@@ -60,7 +68,8 @@ def run(args) -> int:
     library = Library.open(args.library)
     if len(library) == 0:
         raise InputError("the library has no demonstrations", file=library.label)
-    warm = QPolicy.load(args.warm_start) if args.warm_start else None
+    warm = load_policy(args.warm_start) if args.warm_start else None
+    library.write_feature_caches()
     features = library_features(library)
     bar = ProgressBar("training", args.episodes)
     result = train_on_random_tasks(
@@ -69,7 +78,7 @@ def run(args) -> int:
     )
     bar.close()
     steady = episodes_to_steady(result.greedy_curve)
-    result.policy.save(out)
+    save_policy(result.policy, out)
     figure = training_curve_figure(curve_figure_path(out), result.greedy_curve, steady_episode=steady,
                                    exploring=result.curve)
     summary = {

@@ -1,5 +1,5 @@
-"""Map a demonstration onto a task segment (Eq. 22-25, SPEC 6), then bend it exactly
-through the segment's critical configurations.
+"""Map a demonstration onto a task segment (Eq. 22-25), then bend it exactly
+through the segment's critical configurations (``docs/method.rst``, *Mapping*).
 
 Given a demo whose feature is similar to a segment con_j .. con_k (an ``Allocation``
 from ``similarity.py``), the demo suffix from the first allocated sample ``i_1`` is
@@ -8,11 +8,13 @@ turned into an SE(3) path that ends exactly at ``D_k``:
 1. ``delta_i = D_i* (x) D_m`` for the suffix (Eq. 12; identity for the last sample).
 2. ``q_align`` rotates the demo's first translation ``t_demo`` (of ``delta_i1``) onto the
    task's first translation ``t_task`` (of ``D_j* (x) D_k``) by the shortest rotation
-   (Eq. 22), optionally followed by ``twist_rad`` about ``t_task`` (SPEC 6).
+   (Eq. 22), optionally followed by a turn of ``twist_rad`` about ``t_task`` (the free
+   twist of *Mapping*).
 3. Each delta keeps its rotation (Eq. 24); its translation becomes
    ``scale * q_align t_i q_align*`` with ``scale = |t_task| / |t_demo|`` (Eq. 23 with
-   SPEC 6's erratum). Both translations are in the frame of the pose they start from
-   (the body frame at sample i, at con_j), as in the paper.
+   the paper's factor inverted, see *Departures from the paper*). Both translations are
+   in the frame of the pose they start from (the body frame at sample i, at con_j), as
+   in the paper.
 4. ``MP_i = D_k (x) mp_i*`` (Eq. 25): ``mp_i`` is the mapped pose of the final frame
    in frame i, so ``mp_i*`` is its inverse and ``MP_i`` is the world pose of frame i.
    For the last sample ``mp = identity`` and ``MP = D_k``. Mapping a demo onto its own
@@ -26,12 +28,17 @@ the end; between consecutive anchors ``B`` is ScLERPed with the sample-index fra
 A body-frame correction moves each pose by exactly ``|translation(B_i)|`` and turns it
 about its own origin, so the reported maxima are the true displacement of the path.
 
-Conventions for degenerate translations (``min_length_m``, default 1 mm as in SPEC 5):
+Conventions for degenerate translations (``min_length_m``, default 1 mm as in
+*Similarity*):
 if either first translation is shorter, there is no alignment rotation (identity) and
 the twist, which needs a task axis, applies only when ``t_task`` is long enough; if
 ``t_demo`` is shorter, the scale is 1 (a demo that returns to its start has no size to
 compare). Anti-parallel translations turn by pi about a deterministic perpendicular
 axis (``t_demo x e`` with ``e`` the coordinate axis least aligned with ``t_demo``).
+
+The public functions check their inputs (shapes, unit dual quaternions and quaternions)
+and raise ValueError; :func:`map_segment` checks once and then uses the unchecked
+kernels.
 
 Not for: choosing the demo or the allocation (``similarity.py``, planners), timing the
 path, or checking it against obstacles.
@@ -40,13 +47,17 @@ path, or checking it against obstacles.
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from drake_lfd.core.dual_quaternion import (
     IDENTITY_DUAL_QUATERNION,
     axis_angle_from_quaternion,
-    dual_quaternion_from_pose,
+    check_unit_dual_quaternions,
+    check_unit_quaternions,
+    dual_quaternion_from_translation_rotation,
     dual_quaternion_multiply,
     dual_quaternion_relative,
     dual_quaternion_sclerp,
@@ -55,10 +66,17 @@ from drake_lfd.core.dual_quaternion import (
     translation_from_dual_quaternion,
     vector_rotated_by_quaternion,
 )
-from drake_lfd.core.features import feature_from_poses, poses_from_feature
+# The features' unchecked kernels (Eq. 12 and its inverse): map_segment has checked.
+from drake_lfd.core.features import _deltas_from_poses, _poses_from_deltas
 from drake_lfd.core.similarity import MIN_TRANSLATION_M
 
+if TYPE_CHECKING:
+    from drake_lfd.core.similarity import Allocation
+
+__all__ = ["MappedSegment", "alignment_from_translations", "mapped_poses_from_deltas", "map_segment"]
+
 _IDENTITY_QUATERNION = np.array([1.0, 0.0, 0.0, 0.0])
+_IDENTITY_QUATERNION.flags.writeable = False  # shared by every caller: returned as a copy
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -82,25 +100,35 @@ class MappedSegment:
         ``|t_task| / |t_demo|`` applied to the demo translations.
     alignment : array, shape (4,)
         Unit quaternion applied to the demo translations (alignment, then twist).
+
+    The arrays belong to this segment alone (none is shared with another object);
+    ``anchor_indices`` is read-only.
     """
 
-    poses: np.ndarray
-    anchor_indices: np.ndarray
+    poses: NDArray[np.float64]
+    anchor_indices: NDArray[np.int_]
     max_correction_position_m: float
     max_correction_rotation_rad: float
-    uncorrected_poses: np.ndarray
+    uncorrected_poses: NDArray[np.float64]
     scale: float
-    alignment: np.ndarray
+    alignment: NDArray[np.float64]
 
 
-def alignment_from_translations(t_demo, t_task, twist_rad=0.0, min_length_m=MIN_TRANSLATION_M):
+def alignment_from_translations(
+    t_demo: ArrayLike,
+    t_task: ArrayLike,
+    twist_rad: float = 0.0,
+    min_length_m: float = MIN_TRANSLATION_M,
+) -> NDArray[np.float64]:
     """Rotation aligning the demo's first translation with the task's (Eq. 22).
 
     Parameters
     ----------
     t_demo, t_task : array-like, shape (3,)
+        The demo's and the task's first translations (m).
     twist_rad : float
-        Extra rotation about ``t_task``'s direction after the alignment (SPEC 6).
+        Extra rotation about ``t_task``'s direction after the alignment (the free
+        twist of ``docs/method.rst``, *Mapping*).
     min_length_m : float
         Shorter translations have no direction (see the module docstring).
 
@@ -109,13 +137,21 @@ def alignment_from_translations(t_demo, t_task, twist_rad=0.0, min_length_m=MIN_
     q : array, shape (4,)
         Unit quaternion with ``q t_demo q*`` parallel to ``t_task`` (when both are long
         enough).
+
+    Raises
+    ------
+    ValueError
+        If a translation is not one finite 3-vector.
     """
     t_demo = np.asarray(t_demo, dtype=float)
     t_task = np.asarray(t_task, dtype=float)
+    if t_demo.shape != (3,) or t_task.shape != (3,) or not np.all(np.isfinite(t_demo) & np.isfinite(t_task)):
+        raise ValueError(
+            f"t_demo and t_task must be finite vectors of shape (3,), got {t_demo!r} and {t_task!r}")
     demo_length = np.linalg.norm(t_demo)
     task_length = np.linalg.norm(t_task)
     if demo_length < min_length_m or task_length < min_length_m:
-        q = _IDENTITY_QUATERNION
+        q = _IDENTITY_QUATERNION.copy()
     else:
         a = t_demo / demo_length
         b = t_task / task_length
@@ -135,43 +171,72 @@ def alignment_from_translations(t_demo, t_task, twist_rad=0.0, min_length_m=MIN_
     return q
 
 
-def mapped_poses_from_deltas(deltas, D_final, alignment, scale):
+def mapped_poses_from_deltas(
+    deltas: ArrayLike, D_final: ArrayLike, alignment: ArrayLike, scale: float
+) -> NDArray[np.float64]:
     """Eq. 23-25: rotate and scale the delta translations, keep their rotations, place.
 
     Parameters
     ----------
     deltas : array-like, shape (N - 1, 8)
-        Demo deltas ``D_i* (x) D_m`` of the samples before the last.
+        Demo deltas ``D_i* (x) D_m`` of the samples before the last (unit dual
+        quaternions).
     D_final : array-like, shape (8,)
-        The segment's last pose ``D_k``.
+        The segment's last pose ``D_k`` (a unit dual quaternion).
     alignment : array-like, shape (4,)
         Unit quaternion applied to the translations.
     scale : float
+        Factor applied to the translations, finite and >= 0.
 
     Returns
     -------
     poses : array, shape (N, 8)
         ``D_k (x) mp_i*`` for each delta, then ``D_k``.
+
+    Raises
+    ------
+    ValueError
+        If a shape differs from the above, a (dual) quaternion is not unit or
+        ``scale`` is negative or not finite.
     """
-    deltas = np.asarray(deltas, dtype=float)
+    deltas = check_unit_dual_quaternions(deltas, "deltas")
+    D_final = check_unit_dual_quaternions(D_final, "D_final")
+    alignment = check_unit_quaternions(alignment, "alignment")
+    if deltas.ndim != 2 or D_final.shape != (8,) or alignment.shape != (4,):
+        raise ValueError(f"deltas, D_final and alignment must have shapes (N - 1, 8), (8,) and (4,), "
+                         f"got {deltas.shape}, {D_final.shape} and {alignment.shape}")
+    if not (np.isfinite(scale) and scale >= 0.0):
+        raise ValueError(f"scale must be finite and >= 0, got {scale}")
+    return _mapped_poses_from_deltas(deltas, D_final, alignment, scale)
+
+
+def _mapped_poses_from_deltas(deltas, D_final, alignment, scale):
+    """:func:`mapped_poses_from_deltas` without the input checks."""
     translations = scale * vector_rotated_by_quaternion(alignment, translation_from_dual_quaternion(deltas))
-    mapped = dual_quaternion_from_pose(translations, deltas[:, :4])  # Eq. 24
-    return poses_from_feature(mapped, D_final)  # Eq. 25
+    mapped = dual_quaternion_from_translation_rotation(translations, deltas[:, :4])  # Eq. 24
+    return _poses_from_deltas(mapped, D_final)  # Eq. 25
 
 
-def map_segment(demo_poses, allocation, task_poses, twist_rad=0.0, min_length_m=MIN_TRANSLATION_M):
+def map_segment(
+    demo_poses: ArrayLike,
+    allocation: Allocation,
+    task_poses: ArrayLike,
+    twist_rad: float = 0.0,
+    min_length_m: float = MIN_TRANSLATION_M,
+) -> MappedSegment:
     """Map a demonstration onto a segment through all its critical configurations.
 
     Parameters
     ----------
     demo_poses : array-like, shape (m, 8)
-        The (resampled) demo poses whose feature the allocation indexes.
+        The (resampled) demo poses whose feature the allocation indexes (unit dual
+        quaternions).
     allocation : similarity.Allocation
         Demo indices ``i_1 < ... < i_p`` allocated to the segment's p deltas.
     task_poses : array-like, shape (p + 1, 8)
-        ``D_j .. D_k``, the segment's critical configurations.
+        ``D_j .. D_k``, the segment's critical configurations (unit dual quaternions).
     twist_rad : float
-        Free twist about the task's first translation (SPEC 6).
+        Free twist about the task's first translation (``docs/method.rst``, *Mapping*).
     min_length_m : float
         Translation length below which a direction is undefined.
 
@@ -179,26 +244,37 @@ def map_segment(demo_poses, allocation, task_poses, twist_rad=0.0, min_length_m=
     -------
     segment : MappedSegment
         ``N = m - i_1`` poses.
+
+    Raises
+    ------
+    ValueError
+        If a shape differs from the above, the poses are not unit dual quaternions, the
+        allocation indices are not strictly increasing delta indices of the demo, or
+        ``twist_rad`` is not finite.
     """
-    demo_poses = np.asarray(demo_poses, dtype=float)
-    task_poses = np.asarray(task_poses, dtype=float)
+    demo_poses = check_unit_dual_quaternions(demo_poses, "demo_poses")
+    task_poses = check_unit_dual_quaternions(task_poses, "task_poses")
     indices = np.asarray(allocation.indices, dtype=int)
     p = len(indices)
+    if demo_poses.ndim != 2:
+        raise ValueError(f"demo_poses must have shape (m, 8), got {demo_poses.shape}")
     if task_poses.shape != (p + 1, 8):
         raise ValueError(f"task_poses must have shape ({p + 1}, 8) for {p} allocated deltas, "
                          f"got {task_poses.shape}")
     if p == 0 or np.any(np.diff(indices) <= 0) or indices[0] < 0 or indices[-1] >= len(demo_poses) - 1:
         raise ValueError(f"allocation indices {indices} are not strictly increasing demo "
                          f"delta indices below {len(demo_poses) - 1}")
+    if not np.isfinite(twist_rad):
+        raise ValueError(f"twist_rad must be finite, got {twist_rad}")
 
     suffix = demo_poses[indices[0]:]
-    deltas = feature_from_poses(suffix)
+    deltas = _deltas_from_poses(suffix)
     t_demo = translation_from_dual_quaternion(deltas[0])
     t_task = translation_from_dual_quaternion(dual_quaternion_relative(task_poses[0], task_poses[-1]))
     alignment = alignment_from_translations(t_demo, t_task, twist_rad, min_length_m)
     demo_length = np.linalg.norm(t_demo)
     scale = 1.0 if demo_length < min_length_m else float(np.linalg.norm(t_task) / demo_length)
-    uncorrected = mapped_poses_from_deltas(deltas, task_poses[-1], alignment, scale)
+    uncorrected = _mapped_poses_from_deltas(deltas, task_poses[-1], alignment, scale)
 
     anchors = np.append(indices - indices[0], len(suffix) - 1)
     residuals = np.concatenate(

@@ -1,9 +1,20 @@
-"""Semantic similarity of a task segment and a demonstration (Eq. 19-21, SPEC 5).
+"""Semantic similarity of a task segment and a demonstration (Eq. 19-21).
 
-``alpha`` compares rotations (Eq. 19), ``beta`` translation directions (Eq. 20), and
-:func:`allocate` decides Definition 1: an order-preserving allocation of the segment's
-p deltas to demo deltas ``i_1 < ... < i_p`` with every pair within tolerance, choosing
-the one with least total alpha (that total is the action's cost, Eq. 31).
+The one implementation of the similarity test and of Definition 1's allocation; every
+planner calls it (see docs/method.rst, "Similarity"):
+
+* :func:`alpha_beta_matrices`: ``alpha`` (rotation distance, Eq. 19) and ``beta``
+  (translation cosine, Eq. 20, with the 1 mm short-translation rule) of every pair of a
+  task delta and a demo delta;
+* :func:`pair_costs`: the pair's cost, ``alpha`` where the pair is similar
+  (``alpha <= d_alpha`` and ``beta >= d_beta``) and ``inf`` where it is not;
+* :func:`allocation_step`, :func:`allocation_table`, :func:`allocation_backtrack`: the
+  dynamic programme for the least-total-alpha order-preserving allocation
+  ``i_1 < i_2 < ... < i_p`` (that total is the action's cost, Eq. 31).
+
+All of them broadcast over leading dimensions, so the composition problem runs them on
+every candidate of a span and every demonstration at once; :func:`allocate` is the
+single-segment, single-demonstration use.
 
 Not for: building features (``features.py``), choosing among demonstrations or segments
 (the planners), or mapping the demo (``mapping.py``).
@@ -14,71 +25,38 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
-# A translation shorter than this has no direction (SPEC 5).
+__all__ = [
+    "MIN_TRANSLATION_M",
+    "Tolerances",
+    "Allocation",
+    "rotation_distance",
+    "translation_cosine",
+    "alpha_beta_matrices",
+    "pair_costs",
+    "allocation_step",
+    "allocation_table",
+    "allocation_backtrack",
+    "allocate",
+    "allocate_features",
+]
+
+# A translation shorter than this has no direction (docs/method.rst, "Similarity").
 MIN_TRANSLATION_M = 1e-3
-
-
-def rotation_distance(q1, q2):
-    """Rotation distance ``alpha = min(|q1 - q2|, |q1 + q2|)`` (Eq. 5, 19).
-
-    For unit quaternions this is ``2 sin(angle / 4)``, ``angle`` in [0, pi] being the
-    relative rotation angle, so it does not depend on the quaternions' signs.
-
-    Parameters
-    ----------
-    q1, q2 : array-like, shape (..., 4)
-        Leading dimensions broadcast.
-
-    Returns
-    -------
-    alpha : array, shape (...)
-    """
-    q1 = np.asarray(q1, dtype=float)
-    q2 = np.asarray(q2, dtype=float)
-    return np.minimum(np.linalg.norm(q1 - q2, axis=-1), np.linalg.norm(q1 + q2, axis=-1))
-
-
-def translation_cosine(t1, t2, min_length_m=MIN_TRANSLATION_M):
-    """Cosine ``beta`` between translations (Eq. 20) with SPEC 5's short-vector rule.
-
-    Two translations shorter than ``min_length_m`` are similar (beta = 1); one short and
-    one long are not (beta = -1).
-
-    Parameters
-    ----------
-    t1, t2 : array-like, shape (..., 3)
-        Leading dimensions broadcast.
-    min_length_m : float
-
-    Returns
-    -------
-    beta : array, shape (...), in [-1, 1]
-    """
-    t1 = np.asarray(t1, dtype=float)
-    t2 = np.asarray(t2, dtype=float)
-    n1 = np.linalg.norm(t1, axis=-1)
-    n2 = np.linalg.norm(t2, axis=-1)
-    short1 = n1 < min_length_m
-    short2 = n2 < min_length_m
-    cosine = np.sum(t1 * t2, axis=-1) / np.where(short1 | short2, 1.0, n1 * n2)
-    return _short_rule(np.clip(cosine, -1.0, 1.0), short1, short2)
-
-
-def _short_rule(cosine, short1, short2):
-    return np.where(short1 & short2, 1.0, np.where(short1 | short2, -1.0, cosine))
 
 
 @dataclasses.dataclass(frozen=True)
 class Tolerances:
-    """Similarity tolerances, defaults from Table 6 (SPEC 5).
+    """Similarity tolerances, defaults from the paper's Table 6.
 
     Attributes
     ----------
     d_alpha : float
-        Largest rotation distance alpha (0.5 is about 58 deg).
+        Largest rotation distance alpha (0.5 is about 58 deg); a pair with alpha equal
+        to it is similar.
     d_beta : float
-        Smallest translation cosine beta.
+        Smallest translation cosine beta; a pair with beta equal to it is similar.
     min_translation_m : float
         Translations shorter than this have no direction.
     """
@@ -108,59 +86,207 @@ class Allocation:
     alphas: np.ndarray
 
 
-def alpha_beta_matrices(task_rotations, task_translations, demo_rotations, demo_translations,
-                        min_length_m=MIN_TRANSLATION_M):
-    """alpha and beta of every (task delta, demo delta) pair.
+# -- pairwise formulas ----------------------------------------------------------------------
+
+def rotation_distance(q1: ArrayLike, q2: ArrayLike) -> NDArray[np.float64]:
+    """Rotation distance ``alpha = min(|q1 - q2|, |q1 + q2|)`` (Eq. 5, 19), elementwise.
+
+    For unit quaternions this is ``2 sin(angle / 4)``, ``angle`` in [0, pi] being the
+    relative rotation angle, so it does not depend on the quaternions' signs. Accurate
+    near 0, unlike the matrix form of :func:`alpha_beta_matrices`; used to report the
+    alphas of a chosen allocation.
 
     Parameters
     ----------
-    task_rotations : array-like, shape (p, 4)
-        Unit quaternions.
-    task_translations : array-like, shape (p, 3)
-    demo_rotations : array-like, shape (n, 4)
-        Unit quaternions.
-    demo_translations : array-like, shape (n, 3)
+    q1, q2 : array-like, shape (..., 4)
+        Leading dimensions broadcast.
+
+    Returns
+    -------
+    alpha : array, shape (...)
+    """
+    q1 = np.asarray(q1, dtype=float)
+    q2 = np.asarray(q2, dtype=float)
+    return np.minimum(np.linalg.norm(q1 - q2, axis=-1), np.linalg.norm(q1 + q2, axis=-1))
+
+
+def translation_cosine(t1: ArrayLike, t2: ArrayLike,
+                       min_length_m: float = MIN_TRANSLATION_M) -> NDArray[np.float64]:
+    """Cosine ``beta`` between translations (Eq. 20) with the short-translation rule,
+    elementwise.
+
+    Two translations shorter than ``min_length_m`` are similar (beta = 1); one short and
+    one long are not (beta = -1).
+
+    Parameters
+    ----------
+    t1, t2 : array-like, shape (..., 3)
+        Leading dimensions broadcast.
     min_length_m : float
 
     Returns
     -------
-    alpha, beta : arrays, shape (p, n)
+    beta : array, shape (...), in [-1, 1]
     """
-    alpha = _alpha_matrix(task_rotations, demo_rotations)
-    dots, lengths, task_short, demo_short = _translation_products(
-        task_translations, demo_translations, min_length_m)
-    cosine = np.minimum(np.maximum(dots / lengths, -1.0), 1.0)
-    return alpha, _short_rule(cosine, task_short[:, None], demo_short[None, :])
+    units1, short1 = _units_and_short(t1, min_length_m)
+    units2, short2 = _units_and_short(t2, min_length_m)
+    cosine = np.asarray(np.clip(np.sum(units1 * units2, axis=-1), -1.0, 1.0))
+    return _apply_short_rule(cosine, short1, short2)
 
 
-def _alpha_matrix(task_rotations, demo_rotations):
-    # For unit quaternions min(|a - b|, |a + b|)^2 = 2 - 2 |a . b|: one matrix product
-    # instead of (p, n, 4) temporaries. Rounding leaves alpha ~1e-8 rather than 0 for
-    # equal rotations; allocate() recomputes the chosen pairs with rotation_distance.
-    dots = np.abs(np.asarray(task_rotations, dtype=float) @ np.asarray(demo_rotations, dtype=float).T)
-    return np.sqrt(np.maximum(2.0 - 2.0 * dots, 0.0))
+def _units_and_short(translations: ArrayLike, min_length_m: float) -> tuple[NDArray, NDArray]:
+    """Unit directions (..., 3) and the short mask (...). A short vector is divided by
+    ``min_length_m`` instead: its direction is never used (the short rule decides)."""
+    translations = np.asarray(translations, dtype=float)
+    length = np.sqrt(np.einsum("...i,...i->...", translations, translations))
+    short = length < min_length_m
+    return translations / np.maximum(length, min_length_m)[..., None], short
 
 
-def _translation_products(task_translations, demo_translations, min_length_m):
-    """Dot products (p, n), products of lengths (p, n) (1 where short), short masks."""
-    task_translations = np.asarray(task_translations, dtype=float)
-    demo_translations = np.asarray(demo_translations, dtype=float)
-    task_length = np.sqrt(np.einsum("ij,ij->i", task_translations, task_translations))
-    demo_length = np.sqrt(np.einsum("ij,ij->i", demo_translations, demo_translations))
-    task_short = task_length < min_length_m
-    demo_short = demo_length < min_length_m
-    lengths = np.outer(np.where(task_short, 1.0, task_length), np.where(demo_short, 1.0, demo_length))
-    return task_translations @ demo_translations.T, lengths, task_short, demo_short
+def _apply_short_rule(beta: NDArray, short1: NDArray, short2: NDArray) -> NDArray:
+    """In place: beta = 1 where both translations are short, -1 where exactly one is."""
+    if np.any(short1) or np.any(short2):
+        np.copyto(beta, -1.0, where=short1 | short2)
+        np.copyto(beta, 1.0, where=short1 & short2)
+    return beta
 
 
-def allocate(task_rotations, task_translations, demo_rotations, demo_translations,
-             tolerances=Tolerances()):
+# -- the kernel -----------------------------------------------------------------------------
+
+def alpha_beta_matrices(
+    task_rotations: ArrayLike,
+    task_translations: ArrayLike,
+    demo_rotations: ArrayLike,
+    demo_translations: ArrayLike,
+    min_length_m: float = MIN_TRANSLATION_M,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """alpha (Eq. 19) and beta (Eq. 20) of every (task delta, demo delta) pair.
+
+    alpha comes from one matrix product: for unit quaternions
+    ``min(|a - b|, |a + b|)^2 = 2 - 2 |a . b|``. That form rounds to ~1e-8 rather than 0
+    for equal rotations, which is harmless for the test; :func:`allocate` reports the
+    chosen pairs' alphas with :func:`rotation_distance`.
+
+    Parameters
+    ----------
+    task_rotations : array-like, shape (..., p, 4)
+        Unit quaternions (either sign).
+    task_translations : array-like, shape (..., p, 3)
+    demo_rotations : array-like, shape (..., n, 4)
+        Unit quaternions (either sign).
+    demo_translations : array-like, shape (..., n, 3)
+    min_length_m : float
+        Translations shorter than this have no direction.
+
+    Leading dimensions broadcast between task and demo.
+
+    Returns
+    -------
+    alpha, beta : arrays, shape (..., p, n)
+    """
+    task_rotations = np.asarray(task_rotations, dtype=float)
+    demo_rotations = np.asarray(demo_rotations, dtype=float)
+    alpha = np.abs(task_rotations @ np.swapaxes(demo_rotations, -1, -2))
+    alpha *= -2.0
+    alpha += 2.0
+    np.maximum(alpha, 0.0, out=alpha)
+    np.sqrt(alpha, out=alpha)
+    task_units, task_short = _units_and_short(task_translations, min_length_m)
+    demo_units, demo_short = _units_and_short(demo_translations, min_length_m)
+    beta = task_units @ np.swapaxes(demo_units, -1, -2)
+    np.clip(beta, -1.0, 1.0, out=beta)
+    _apply_short_rule(beta, task_short[..., :, None], demo_short[..., None, :])
+    return alpha, beta
+
+
+def pair_costs(
+    task_rotations: ArrayLike,
+    task_translations: ArrayLike,
+    demo_rotations: ArrayLike,
+    demo_translations: ArrayLike,
+    tolerances: Tolerances = Tolerances(),
+) -> NDArray[np.float64]:
+    """Cost of pairing each task delta with each demo delta: alpha where the pair is
+    similar (``alpha <= d_alpha`` and ``beta >= d_beta``, Eq. 19-21), inf where not.
+
+    Shapes as in :func:`alpha_beta_matrices`; returns an array of shape (..., p, n).
+    """
+    alpha, beta = alpha_beta_matrices(task_rotations, task_translations, demo_rotations,
+                                      demo_translations, tolerances.min_translation_m)
+    similar = alpha <= tolerances.d_alpha
+    similar &= beta >= tolerances.d_beta
+    alpha[~similar] = np.inf
+    return alpha
+
+
+def allocation_step(previous: ArrayLike, row: ArrayLike, out: NDArray | None = None) -> NDArray[np.float64]:
+    """One row of the allocation dynamic programme (Definition 1, Eq. 21).
+
+    ``previous[..., i]`` is the least total alpha of allocating task deltas 1..l-1 with
+    delta l-1 at demo index i (inf: impossible); ``row[..., i]`` the pair cost of delta
+    l with demo index i (:func:`pair_costs`). Returns the least total for deltas 1..l
+    with delta l at index i: ``row[i] + min over i' < i of previous[i']``. The order is
+    strict (``i' < i``): two task deltas never share a demo delta. The best predecessor
+    is a prefix minimum, so a step costs O(n).
+
+    Parameters
+    ----------
+    previous, row : array-like, shape (..., n)
+        Leading dimensions broadcast.
+    out : array, shape (..., n), optional
+        Where to write the result; may be ``row`` itself.
+
+    Returns
+    -------
+    cost : array, shape (..., n)
+    """
+    previous = np.asarray(previous, dtype=float)
+    row = np.asarray(row, dtype=float)
+    cost = np.empty(np.broadcast_shapes(previous.shape, row.shape)) if out is None else out
+    if cost.shape[-1] == 0:
+        return cost
+    best_before = np.minimum.accumulate(previous, axis=-1)
+    np.add(best_before[..., :-1], row[..., 1:], out=cost[..., 1:])
+    cost[..., 0] = np.inf
+    return cost
+
+
+def allocation_table(pair_cost: ArrayLike) -> NDArray[np.float64]:
+    """All rows of the allocation dynamic programme for pair costs (..., p, n).
+
+    ``table[..., l, i]`` is the least total alpha of allocating task deltas 1..l+1 with
+    delta l+1 at demo index i (see :func:`allocation_step`); ``table[..., -1, :].min()``
+    is the least total of the whole segment (inf: no valid allocation).
+    """
+    table = np.array(pair_cost, dtype=float)
+    for l in range(1, table.shape[-2]):
+        allocation_step(table[..., l - 1, :], table[..., l, :], out=table[..., l, :])
+    return table
+
+
+def allocation_backtrack(table: ArrayLike) -> NDArray[np.int_] | None:
+    """The demo indices ``i_1 < ... < i_p`` of the least allocation of one segment, from
+    its :func:`allocation_table` (p, n); None when there is none. Ties go to the
+    earliest demo indices."""
+    table = np.asarray(table, dtype=float)
+    p, n = table.shape
+    if p == 0 or n == 0:
+        return None
+    indices = np.empty(p, dtype=int)
+    indices[p - 1] = int(np.argmin(table[p - 1]))
+    if not np.isfinite(table[p - 1, indices[p - 1]]):
+        return None
+    for l in range(p - 2, -1, -1):
+        indices[l] = int(np.argmin(table[l, : indices[l + 1]]))
+    return indices
+
+
+def allocate(task_rotations: ArrayLike, task_translations: ArrayLike, demo_rotations: ArrayLike,
+             demo_translations: ArrayLike, tolerances: Tolerances = Tolerances()) -> Allocation | None:
     """Least-alpha order-preserving allocation of task deltas to demo deltas (Eq. 21).
 
-    Dynamic programme over (task delta l, demo index i): ``cost[l, i]`` is the least
-    total alpha of allocating deltas 1..l with delta l at demo index i; the best
-    predecessor is a prefix minimum of row l-1, so the work is O(p n) with one loop over
-    p. Ties go to the earliest demo indices.
+    :func:`pair_costs`, then the dynamic programme (:func:`allocation_table`, O(p n))
+    and :func:`allocation_backtrack`. Ties go to the earliest demo indices.
 
     Parameters
     ----------
@@ -175,39 +301,23 @@ def allocate(task_rotations, task_translations, demo_rotations, demo_translation
     allocation : Allocation or None
         None when no valid allocation exists (including p > n).
     """
-    alpha = _alpha_matrix(task_rotations, demo_rotations)
-    p, n = alpha.shape
+    task_rotations = np.asarray(task_rotations, dtype=float)
+    demo_rotations = np.asarray(demo_rotations, dtype=float)
+    p, n = len(task_rotations), len(demo_rotations)
     if p == 0 or p > n:
         return None
-    dots, lengths, task_short, demo_short = _translation_products(
-        task_translations, demo_translations, tolerances.min_translation_m)
-    # beta >= d_beta without dividing: dots >= d_beta * |t_task| |t_demo|.
-    similar = dots >= tolerances.d_beta * lengths
-    if task_short.any() or demo_short.any():
-        both = task_short[:, None] & demo_short[None, :]
-        either = task_short[:, None] | demo_short[None, :]
-        beta_short = np.where(both, 1.0, -1.0)
-        similar = np.where(either, beta_short >= tolerances.d_beta, similar)
-    cost = np.where(similar & (alpha <= tolerances.d_alpha), alpha, np.inf)
-    for l in range(1, p):
-        best_before = np.minimum.accumulate(cost[l - 1])
-        cost[l, 0] = np.inf
-        cost[l, 1:] += best_before[:-1]
-    last = int(np.argmin(cost[p - 1]))
-    if not np.isfinite(cost[p - 1, last]):
+    table = allocation_table(pair_costs(task_rotations, task_translations, demo_rotations,
+                                        demo_translations, tolerances))
+    indices = allocation_backtrack(table)
+    if indices is None:
         return None
-    indices = np.empty(p, dtype=int)
-    indices[p - 1] = last
-    for l in range(p - 2, -1, -1):
-        indices[l] = int(np.argmin(cost[l, : indices[l + 1]]))
-    alphas = rotation_distance(np.asarray(task_rotations, dtype=float),
-                               np.asarray(demo_rotations, dtype=float)[indices])
+    alphas = rotation_distance(task_rotations, demo_rotations[indices])
     indices.flags.writeable = False
     alphas.flags.writeable = False
     return Allocation(indices=indices, cost=float(alphas.sum()), alphas=alphas)
 
 
-def allocate_features(task_feature, demo_feature, tolerances=Tolerances()):
+def allocate_features(task_feature, demo_feature, tolerances: Tolerances = Tolerances()) -> Allocation | None:
     """:func:`allocate` for two ``features.Feature`` objects (task segment, demo)."""
     return allocate(task_feature.rotations, task_feature.translations,
                     demo_feature.rotations, demo_feature.translations, tolerances)

@@ -9,19 +9,25 @@ continuous everywhere (zero at joins) and the tool reaches each critical configu
 without overshoot. Within a span the speed is capped by a maximum TCP speed and angular
 speed (defaults for collaborative work: 0.25 m/s, 1 rad/s).
 
+See ``docs/method.rst``, *Timing*. :func:`time_plan` checks its inputs (unit dual
+quaternions, critical indices, positive speed limits) and raises ValueError.
+
 This module does not choose or map demonstrations (planning and mapping modules do).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from pydrake.math import RigidTransform
 from pydrake.trajectories import PiecewisePose
 
 from drake_lfd.core.dual_quaternion import (
     axis_angle_from_quaternion,
+    check_unit_dual_quaternions,
     matrices_from_dual_quaternion,
     quaternion_conjugate,
     quaternion_multiply,
@@ -29,8 +35,18 @@ from drake_lfd.core.dual_quaternion import (
     translation_from_dual_quaternion,
 )
 
+__all__ = [
+    "DEFAULT_MAX_SPEED_M_S",
+    "DEFAULT_MAX_ANGULAR_SPEED_RAD_S",
+    "MIN_SPAN_DURATION_S",
+    "TimedPlan",
+    "time_plan",
+]
+
 DEFAULT_MAX_SPEED_M_S = 0.25
 DEFAULT_MAX_ANGULAR_SPEED_RAD_S = 1.0
+# Shortest span between two critical configurations (s); a span that does not move holds
+# its pose this long.
 MIN_SPAN_DURATION_S = 0.2
 # Peak of d/dtau of the minimum-jerk profile 10 tau^3 - 15 tau^4 + 6 tau^5.
 _MINIMUM_JERK_PEAK_RATE = 1.875
@@ -42,20 +58,29 @@ class TimedPlan:
 
     Attributes
     ----------
-    times : array, shape (n,), strictly increasing, starting at 0.
-    poses : array, shape (n, 8), unit dual quaternions of X_WE.
-    critical_indices : tuple of int, index into ``poses`` where each con_i is met.
+    times : array, shape (n,)
+        Seconds, strictly increasing, starting at 0.
+    poses : array, shape (n, 8)
+        Unit dual quaternions of X_WE.
+    critical_indices : tuple of int
+        Index into ``poses`` where each con_i is met.
+
+    Notes
+    -----
+    The constructor does not check these (:func:`time_plan` builds valid plans).
     """
 
-    times: np.ndarray
-    poses: np.ndarray
+    times: NDArray[np.float64]
+    poses: NDArray[np.float64]
     critical_indices: tuple[int, ...]
 
     @property
     def duration(self) -> float:
+        """Time of the last pose (s)."""
         return float(self.times[-1])
 
     def X_WE_list(self) -> list[RigidTransform]:
+        """The poses as pydrake ``RigidTransform`` objects, one per sample."""
         return [RigidTransform(T) for T in matrices_from_dual_quaternion(self.poses)]
 
     def to_piecewise_pose(self) -> PiecewisePose:
@@ -67,7 +92,7 @@ def _minimum_jerk(tau: np.ndarray) -> np.ndarray:
     return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
 
 
-def _step_lengths_s(poses: np.ndarray, max_speed: float, max_angular_speed: float) -> np.ndarray:
+def _full_speed_step_durations_s(poses: np.ndarray, max_speed: float, max_angular_speed: float) -> np.ndarray:
     """Time each step would take at full speed: max(|dp| / v, dtheta / omega), shape (n-1,)."""
     p = translation_from_dual_quaternion(poses)
     r = rotation_from_dual_quaternion(poses)
@@ -78,33 +103,59 @@ def _step_lengths_s(poses: np.ndarray, max_speed: float, max_angular_speed: floa
 
 
 def time_plan(
-    poses: np.ndarray,
-    critical_indices,
+    poses: ArrayLike,
+    critical_indices: Sequence[int] | ArrayLike,
     *,
     max_speed_m_s: float = DEFAULT_MAX_SPEED_M_S,
     max_angular_speed_rad_s: float = DEFAULT_MAX_ANGULAR_SPEED_RAD_S,
 ) -> TimedPlan:
-    """Attaches times to ``poses`` (n, 8), at rest at each of ``critical_indices``.
+    """Attaches times to ``poses``, at rest at each of ``critical_indices``.
 
     Each span between consecutive critical indices lasts
     ``max(1.875 * L, MIN_SPAN_DURATION_S)`` where L is its duration at full speed, so the
     minimum-jerk profile's peak speed equals the cap. Consecutive duplicate poses inside
     a span are dropped (they would need zero time); the returned ``critical_indices``
     refer to the returned poses.
+
+    Parameters
+    ----------
+    poses : array-like, shape (n, 8)
+        The plan's poses X_WE (unit dual quaternions).
+    critical_indices : sequence of int, shape (k,)
+        Where the critical configurations are met, increasing from 0 to n - 1.
+    max_speed_m_s, max_angular_speed_rad_s : float
+        Caps on the tool's speed and angular speed, > 0.
+
+    Returns
+    -------
+    plan : TimedPlan
+        New arrays (nothing shared with ``poses``).
+
+    Raises
+    ------
+    ValueError
+        If ``poses`` are not unit dual quaternions of shape (n, 8), the critical indices
+        do not increase from 0 to n - 1, or a speed cap is not positive.
     """
-    poses = np.asarray(poses, dtype=float)
+    poses = check_unit_dual_quaternions(poses, "poses")
+    if poses.ndim != 2 or len(poses) == 0:
+        raise ValueError(f"poses must have shape (n >= 1, 8), got {poses.shape}")
     critical = [int(i) for i in critical_indices]
-    if critical[0] != 0 or critical[-1] != len(poses) - 1 or np.any(np.diff(critical) <= 0):
+    if not critical or critical[0] != 0 or critical[-1] != len(poses) - 1 or np.any(np.diff(critical) <= 0):
         raise ValueError(f"critical_indices must increase from 0 to {len(poses) - 1}: {critical}")
-    step = _step_lengths_s(poses, max_speed_m_s, max_angular_speed_rad_s)
+    if not (max_speed_m_s > 0.0 and max_angular_speed_rad_s > 0.0):
+        raise ValueError(f"max_speed_m_s and max_angular_speed_rad_s must be > 0, got {max_speed_m_s} "
+                         f"and {max_angular_speed_rad_s}")
+    full_speed_durations = _full_speed_step_durations_s(poses, max_speed_m_s, max_angular_speed_rad_s)
 
     times = [0.0]
     kept = [poses[0]]
     new_critical = [0]
     t_start = 0.0
     for first, last in zip(critical[:-1], critical[1:]):
-        lengths = np.concatenate([[0.0], np.cumsum(step[first:last])])
-        total = lengths[-1]
+        # Time at which each sample of the span would be reached at full speed.
+        elapsed = np.concatenate([[0.0], np.cumsum(full_speed_durations[first:last])])
+        total = elapsed[-1]
         duration = max(_MINIMUM_JERK_PEAK_RATE * total, MIN_SPAN_DURATION_S)
         if total <= 1e-12:
             # The span does not move: hold the pose for the minimum duration.
@@ -113,10 +164,10 @@ def time_plan(
         else:
             # Invert the monotone profile on a fine grid: time at which each sample is due.
             tau_grid = np.linspace(0.0, 1.0, 2001)
-            tau = np.interp(lengths / total, _minimum_jerk(tau_grid), tau_grid)
-            for k in range(1, len(lengths)):
-                is_last = k == len(lengths) - 1
-                if not is_last and lengths[k] - lengths[k - 1] <= 1e-12:
+            tau = np.interp(elapsed / total, _minimum_jerk(tau_grid), tau_grid)
+            for k in range(1, len(elapsed)):
+                is_last = k == len(elapsed) - 1
+                if not is_last and elapsed[k] - elapsed[k - 1] <= 1e-12:
                     continue
                 t = t_start + (duration if is_last else tau[k] * duration)
                 if t - times[-1] <= 1e-9:

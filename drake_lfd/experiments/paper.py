@@ -14,7 +14,7 @@ Steps (each printed as it runs):
 6. every successful trial is re-derived from its logged joint trajectory with
    independent kinematics (``rederive.py``).
 
-Writes ``results.json`` (INTERFACES.md), ``report.md``, PNG figures and a Meshcat HTML
+Writes ``results.json`` (docs/cli.rst), ``report.md``, PNG figures and a Meshcat HTML
 recording per task into the output folder. Not for: the command line (``cli_paper.py``).
 """
 
@@ -32,15 +32,16 @@ from drake_lfd import __version__
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.io.atomic_files import atomic_write_bytes, atomic_write_json
 from drake_lfd.experiments.figures import training_curve_figure
-from drake_lfd.io.library import Library
-from drake_lfd.io.library_access import library_features
+from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.plan_json import uncovered_json
 from drake_lfd.planning.planner import build_problem, plan_task
+from drake_lfd.io.policy_files import save_policy
 from drake_lfd.planning.q_learning import episodes_to_steady
 from drake_lfd.experiments.rederive import rederive_run
 from drake_lfd.experiments.simulation import composition_counts, run_trials, write_trial_figures
 from drake_lfd.experiments.table5 import compare as compare_table5
-from drake_lfd.io.task_files import draw_trial, load_task
+from drake_lfd.core.tasks import draw_trial
+from drake_lfd.io.task_files import load_task
 from drake_lfd.planning.training import train_on_random_tasks
 
 PAPER = {
@@ -121,7 +122,7 @@ def run_paper(out: Path, *, trials: int = 20, seed: int = 0, log: Callable[[str]
     steady = episodes_to_steady(training.greedy_curve)
     training_curve_figure(out / "training_curve.png", training.greedy_curve, steady_episode=steady,
                           exploring=training.curve, title="Training on 20 random tasks (Fig. 7)")
-    training.policy.save(out / "policy_paper5.json")
+    save_policy(training.policy, out / "policy_paper5.json")
 
     results = {"training": {"tasks": 20, "episodes": 100, "wall_time_s": training.wall_time_s,
                             "episodes_to_steady": steady,
@@ -150,7 +151,7 @@ def run_paper(out: Path, *, trials: int = 20, seed: int = 0, log: Callable[[str]
     training_curve_figure(out / "retraining_curve.png", assembling_curve, steady_episode=retrain_steady,
                           exploring=retraining.rewards[:, -1],
                           title="Assembling after the new demonstration (Fig. 10c)")
-    retraining.policy.save(out / "policy_paper6.json")
+    save_policy(retraining.policy, out / "policy_paper6.json")
     assembling_results["retraining"] = {"episodes": 100, "episodes_to_steady": retrain_steady,
                                         "wall_time_s": retraining.wall_time_s}
     log(f"assembling: {trials} closed-loop trials with the retrained policy")
@@ -251,7 +252,7 @@ def report_markdown(results: dict, table5_rows, tasks) -> str:
     lines += [
         "## Choices that make the paper's tasks feasible for a UR5e",
         "",
-        "The paper never defines the end-effector frame or where the robot stands (SPEC 10). Each "
+        "The paper never defines the end-effector frame or where the robot stands. Each "
         "scenario file in `sims/` keeps the paper's numbers and explains its choices:",
         "",
     ]

@@ -1,7 +1,7 @@
 """Re-derive a closed-loop run's verdict from its logged joint trajectory alone.
 
 The simulator's own judge (``closed_loop.judge_run``) uses the plant and the monitor.
-This module recomputes the SPEC 9 criteria from what ``simulate --json`` logs (``t``,
+This module recomputes the success criteria (docs/method.rst, Closed loop and success) from what ``simulate --json`` logs (``t``,
 ``q``, the critical configurations and when each was due) with independent means:
 
 * forward kinematics from Universal Robots' DH table, written here in numpy (not the

@@ -1,12 +1,14 @@
 """Closed-loop evaluation trials of a task: plan each concrete trial, run it, judge it.
 
 Trial i (0-based) draws its concrete task with seed ``seed + i``; it is planned with the
-chosen planner, simulated closed loop on the UR5e (``closed_loop.py``) and judged by
-SPEC 9 (critical configurations within 5 mm / 2 deg, path constraints, no penetration of
-obstacles or shells, joint position and speed limits). A trial whose task the library
-cannot cover, or whose first configuration the UR5e cannot reach, fails with the reason.
+chosen planner, simulated closed loop on the UR5e and judged
+(:mod:`drake_lfd.experiments.judging`: critical configurations within 5 mm / 2 deg, path
+constraints, no penetration of obstacles or shells, joint position and speed limits).
+All trials of a task run on one pipeline Diagram (:class:`TrialRunner`): the task is set
+in the Context, the plant is not rebuilt. A trial whose task the library cannot cover,
+or whose first configuration the UR5e cannot reach, fails with the reason.
 
-Not for: the command line (``cli_simulate.py``) or the paper's report (``paper.py``).
+Not for: the command line (``cli/simulate.py``) or the paper's report (``paper.py``).
 """
 
 from __future__ import annotations
@@ -18,16 +20,20 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from drake_lfd.diagrams.closed_loop import ClosedLoopResult, judge_run, run_closed_loop
+from pydrake.geometry import Meshcat
+
+from drake_lfd.diagrams.closed_loop import ClosedLoopResult, ClosedLoopRunner
+from drake_lfd.diagrams.config import PipelineConfig, load_pipeline_config
+from drake_lfd.diagrams.pipeline import build_pipeline
+from drake_lfd.experiments.judging import judge_run
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
-from drake_lfd.robot.kinematics import shared_kinematics
+from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.io.plan_json import composition_json, critical_configurations_json, describe_uncovered
-from drake_lfd.planning.planner import PlanResult, plan_task
+from drake_lfd.planning.planner import PlanResult
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
 from drake_lfd.planning.q_learning import QPolicy
-from drake_lfd.robot.scene import table_under_robot
-from drake_lfd.io.task_files import Task, draw_trial
+from drake_lfd.core.tasks import Task, draw_trial
 
 
 @dataclasses.dataclass
@@ -47,6 +53,51 @@ class TrialOutcome:
         return "+".join(step.demo for step in self.plan.composition)
 
 
+class TrialRunner:
+    """Runs the trials of one task on one pipeline Diagram (built once, reused).
+
+    The scene (base, tool, table, obstacles, shells) is the task's and does not change
+    between trials; each trial sets its concrete task on the Diagram's ``task`` input.
+    A trial to be recorded runs on a second pipeline built with a Meshcat (made on the
+    first such request), so the others do not pay for visualisation.
+    """
+
+    def __init__(self, task: Task, features: Mapping[str, Feature], *, planner: str = "exact",
+                 policy: QPolicy | None = None, with_table: bool = True, config: PipelineConfig | None = None):
+        self.task = task
+        self._options = dict(features=features, planner=planner, policy=policy, with_table=with_table,
+                             config=config if config is not None else load_pipeline_config(task.file))
+        self._runner = ClosedLoopRunner(build_pipeline(task, **self._options))
+        self._recording_runner = None
+        kinematics = UR5eKinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+        self._joint_limits = kinematics.position_limits()
+        self._velocity_limits = kinematics.velocity_limits()
+
+    def _recorder(self) -> ClosedLoopRunner:
+        if self._recording_runner is None:
+            meshcat = Meshcat()
+            self._recording_runner = ClosedLoopRunner(
+                build_pipeline(self.task, meshcat=meshcat, **self._options), record_meshcat=meshcat)
+        return self._recording_runner
+
+    def run(self, *, trial: int, seed: int, record_html: str | Path | None = None) -> TrialOutcome:
+        """Plans, simulates and judges trial ``trial`` (1-based) drawn with ``seed``."""
+        concrete = draw_trial(self.task, seed)
+        runner = self._runner if record_html is None else self._recorder()
+        scheduled = runner.plan(concrete)
+        plan = scheduled.result
+        if not plan.planned:
+            return TrialOutcome(trial, seed, plan, None, False,
+                                ["demonstration requested: " + line for line in describe_uncovered(plan)])
+        try:
+            scheduled, run = runner.run(concrete, scheduled=scheduled, record_html=record_html)
+        except InputError as error:  # con_1 unreachable for the UR5e
+            return TrialOutcome(trial, seed, plan, None, False, [str(error)])
+        judgement = judge_run(run, joint_limits=self._joint_limits, velocity_limits=self._velocity_limits,
+                              path_constraints=concrete.path_constraints)
+        return TrialOutcome(trial, seed, scheduled.result, run, judgement.success, list(judgement.failures))
+
+
 def run_trial(
     task: Task,
     features: Mapping[str, Feature],
@@ -58,27 +109,10 @@ def run_trial(
     record_html: str | Path | None = None,
     with_table: bool = True,
 ) -> TrialOutcome:
-    """Plans, simulates and judges one concrete trial of ``task``."""
-    concrete = draw_trial(task, seed)
-    table = table_under_robot(task.X_WB) if with_table else None
-    floor_z = None if table is None else float(table.centre[2] + table.size[2] / 2)
-    plan = plan_task(concrete, features, planner=planner, policy=policy, seed=seed, floor_z=floor_z)
-    if not plan.planned:
-        return TrialOutcome(trial, seed, plan, None, False,
-                            ["demonstration requested: " + line for line in describe_uncovered(plan)])
-    try:
-        run = run_closed_loop(
-            plan.timed, X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, obstacles=task.obstacles,
-            safety_shells=task.safety_shells, table=table, record_html=record_html,
-        )
-    except InputError as error:  # con_1 unreachable for the UR5e
-        return TrialOutcome(trial, seed, plan, None, False, [str(error)])
-    kinematics = shared_kinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
-    judgement = judge_run(
-        run, plan.timed, joint_limits=kinematics.position_limits(),
-        velocity_limits=kinematics.velocity_limits(), path_constraints=concrete.path_constraints,
-    )
-    return TrialOutcome(trial, seed, plan, run, judgement.success, list(judgement.failures))
+    """Plans, simulates and judges one concrete trial of ``task`` (a one-off
+    :class:`TrialRunner`; use one runner for many trials)."""
+    runner = TrialRunner(task, features, planner=planner, policy=policy, with_table=with_table)
+    return runner.run(trial=trial, seed=seed, record_html=record_html)
 
 
 def run_trials(
@@ -92,16 +126,15 @@ def run_trials(
     record_html: str | Path | None = None,
     progress: Callable[[int, int, TrialOutcome], None] | None = None,
 ) -> tuple[list[TrialOutcome], float]:
-    """Runs ``trials`` trials (seeds ``seed``, ``seed + 1``, ...); the first one that plans
-    is recorded to ``record_html``. Returns the outcomes and the wall time."""
+    """Runs ``trials`` trials (seeds ``seed``, ``seed + 1``, ...) on one pipeline Diagram;
+    the first one that plans is recorded to ``record_html``. Returns the outcomes and the
+    wall time (planning included)."""
     start = time.perf_counter()
+    runner = TrialRunner(task, features, planner=planner, policy=policy)
     outcomes = []
     recorded = record_html is None
     for i in range(trials):
-        outcome = run_trial(
-            task, features, trial=i + 1, seed=seed + i, planner=planner, policy=policy,
-            record_html=None if recorded else record_html,
-        )
+        outcome = runner.run(trial=i + 1, seed=seed + i, record_html=None if recorded else record_html)
         recorded = recorded or outcome.run is not None
         outcomes.append(outcome)
         if progress:
@@ -110,7 +143,7 @@ def run_trials(
 
 
 def simulate_json(task: Task, outcomes: list[TrialOutcome], wall_time_s: float) -> dict:
-    """The ``simulate --json`` document (INTERFACES.md). Extra per-trial fields:
+    """The ``simulate --json`` document (docs/cli.rst). Extra per-trial fields:
     ``status`` (the plan's), ``min_distance_pair`` and ``critical_times_s`` (when each
     critical configuration was due, so the verdict can be re-derived from ``t``/``q``)."""
     trials = []
@@ -177,7 +210,7 @@ def write_trial_figures(task: Task, outcome: TrialOutcome, out: Path, prefix: st
         out / f"{prefix}_plan.png", outcome.plan.timed.poses, outcome.plan.timed.critical_indices,
         obstacles=concrete.obstacles, safety_shells=concrete.safety_shells,
         title=f"{prefix}: SE(3) plan, trial {outcome.trial}").name
-    kinematics = shared_kinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+    kinematics = UR5eKinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
     lower, upper = kinematics.position_limits()
     figures["joints"] = joint_trajectories_figure(
         out / f"{prefix}_joints.png", outcome.run.t, outcome.run.q, lower=lower, upper=upper,

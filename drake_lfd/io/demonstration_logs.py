@@ -1,11 +1,12 @@
-"""Kinesthetic demonstrations: UR5e joint logs read, checked and written (Eq. 11).
+"""UR5e joint logs: RTDE CSV files read, checked and written as demonstrations (Eq. 11).
 
-A demonstration is a time series of the six UR5e joint angles, as the robot records it.
-Users already have logs from Universal Robots' RTDE interface, so that is the import
-format: a CSV whose header names the columns, among them ``timestamp`` and
-``actual_q_0`` .. ``actual_q_5`` (radians, joint order shoulder_pan .. wrist_3),
-separated by spaces (UR's ``record.py``) or commas (``ur_rtde``'s file recording); the
-separator is sniffed from the header and any other columns are ignored.
+A demonstration (:class:`~drake_lfd.core.demonstrations.Demonstration`) is a time series
+of the six UR5e joint angles, as the robot records it. Users already have logs from
+Universal Robots' RTDE interface, so that is the import format: a CSV whose header
+names the columns, among them ``timestamp`` and ``actual_q_0`` .. ``actual_q_5``
+(radians, joint order shoulder_pan .. wrist_3), separated by spaces (UR's
+``record.py``) or commas (``ur_rtde``'s file recording); the separator is sniffed from
+the header and any other columns are ignored.
 
 The project's own format is the same CSV with exactly the columns
 ``timestamp,actual_q_0,...,actual_q_5``, floats written with ``repr`` precision so a
@@ -27,13 +28,15 @@ Choices for real logs:
   measurement overshoot) are refused: the log is probably in degrees.
 
 Every problem is one :class:`~drake_lfd.core.errors.InputError` naming the file, the line
-and column, and what is wrong. Not for: features (``features.py``) or storing
-demonstrations (``library.py``).
+and column, and what is wrong.
+
+Not for: the demonstration type and its checks (:mod:`drake_lfd.core.demonstrations`),
+forward kinematics (:mod:`drake_lfd.robot.kinematics`), features (``features.py``) or
+storing demonstrations (``library.py``).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import re
 from pathlib import Path
@@ -41,66 +44,26 @@ from typing import NamedTuple
 
 import numpy as np
 
-from drake_lfd.io.atomic_files import atomic_write_bytes
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
+from drake_lfd.core.demonstrations import JOINT_COLUMNS, NUM_JOINTS, Demonstration, check_joint_value
 from drake_lfd.core.errors import InputError
-from drake_lfd.core.read_only_arrays import read_only_array
+from drake_lfd.io.atomic_files import atomic_write_bytes
 
-NUM_JOINTS = 6
+__all__ = [
+    "TIMESTAMP_COLUMN",
+    "RUNTIME_STATE_COLUMN",
+    "RUNTIME_STATE_PLAYING",
+    "LoadedDemonstration",
+    "read_rtde_csv",
+    "rtde_csv_text",
+    "write_rtde_csv",
+]
+
 TIMESTAMP_COLUMN = "timestamp"
-JOINT_COLUMNS = tuple(f"actual_q_{i}" for i in range(NUM_JOINTS))
 RUNTIME_STATE_COLUMN = "runtime_state"
 # UR RTDE runtime_state value of a running (playing) program.
 RUNTIME_STATE_PLAYING = 2
-# |q| above this is not a UR joint angle in radians (joint range is +-2 pi).
-MAX_ABS_JOINT_RAD = 2.0 * math.pi + 0.05
 
 _JOINT_COLUMN_PATTERN = re.compile(r"^actual_q_(\d+)$")
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class Demonstration:
-    """One kinesthetic demonstration (Eq. 11).
-
-    Attributes
-    ----------
-    name : str
-        Its name in a library (``[A-Za-z0-9_-]+``), or the log's file stem.
-    timestamps : array, shape (m,)
-        Sample times in seconds, strictly increasing (read-only).
-    joint_positions : array, shape (m, 6)
-        UR5e joint angles in radians, joint order shoulder_pan .. wrist_3 (read-only).
-    description : str
-        What was demonstrated, in words.
-    """
-
-    name: str
-    timestamps: np.ndarray
-    joint_positions: np.ndarray
-    description: str = ""
-
-    def __post_init__(self):
-        timestamps = read_only_array(self.timestamps)
-        joint_positions = read_only_array(self.joint_positions)
-        if timestamps.ndim != 1:
-            raise ValueError(f"timestamps must have shape (m,), got {timestamps.shape}")
-        if joint_positions.shape != (timestamps.shape[0], NUM_JOINTS):
-            raise ValueError(
-                f"joint_positions must have shape ({timestamps.shape[0]}, {NUM_JOINTS}), "
-                f"got {joint_positions.shape}"
-            )
-        object.__setattr__(self, "timestamps", timestamps)
-        object.__setattr__(self, "joint_positions", joint_positions)
-
-    @property
-    def num_samples(self) -> int:
-        """m, the number of samples."""
-        return int(self.timestamps.shape[0])
-
-    @property
-    def duration_s(self) -> float:
-        """Time from the first to the last sample, seconds."""
-        return float(self.timestamps[-1] - self.timestamps[0]) if self.num_samples else 0.0
 
 
 class LoadedDemonstration(NamedTuple):
@@ -112,54 +75,6 @@ class LoadedDemonstration(NamedTuple):
 
     demonstration: Demonstration
     warnings: tuple[str, ...]
-
-
-def check_demonstration(demonstration, *, file=None):
-    """Checks a demonstration built in code, as the log reader checks a file.
-
-    Parameters
-    ----------
-    demonstration : Demonstration
-    file : str or Path, optional
-        Named in error messages.
-
-    Raises
-    ------
-    InputError
-        Fewer than 2 samples, non-finite values, timestamps not strictly increasing,
-        or joint angles beyond :data:`MAX_ABS_JOINT_RAD` (degrees?).
-    """
-    t = demonstration.timestamps
-    q = demonstration.joint_positions
-    if t.shape[0] < 2:
-        raise InputError(
-            f"has {t.shape[0]} sample(s); a demonstration needs at least 2", file=file, field="samples"
-        )
-    for index in range(t.shape[0]):
-        if not math.isfinite(t[index]):
-            raise InputError(f"{t[index]!r} is not finite", file=file, field=f"sample {index}, timestamp")
-        for joint in range(NUM_JOINTS):
-            _check_joint_value(q[index, joint], file=file, field=f"sample {index}, {JOINT_COLUMNS[joint]}")
-    steps = np.diff(t)
-    if np.any(steps <= 0.0):
-        index = int(np.argmax(steps <= 0.0)) + 1
-        raise InputError(
-            f"timestamp {t[index]!r} is not after the previous one ({t[index - 1]!r}); "
-            "timestamps must strictly increase",
-            file=file,
-            field=f"sample {index}",
-        )
-
-
-def _check_joint_value(value, *, file, field):
-    if not math.isfinite(value):
-        raise InputError(f"{value!r} is not a finite number", file=file, field=field)
-    if abs(value) > MAX_ABS_JOINT_RAD:
-        raise InputError(
-            f"{value!r} rad is beyond the UR joint range (+-2 pi); is the log in degrees?",
-            file=file,
-            field=field,
-        )
 
 
 # ----------------------------------------------------------------------------- reading
@@ -342,7 +257,7 @@ def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True)
             )
     for number, values, _ in rows:
         for column, value in zip(JOINT_COLUMNS, values[1:]):
-            _check_joint_value(value, file=path, field=f"line {number}, column {column}")
+            check_joint_value(value, file=path, field=f"line {number}, column {column}")
 
     table = np.array([values for _, values, _ in rows])
     demonstration = Demonstration(
@@ -381,28 +296,3 @@ def write_rtde_csv(demonstration, path):
     path : str or Path
     """
     atomic_write_bytes(path, rtde_csv_text(demonstration).encode("utf-8"))
-
-
-# ------------------------------------------------------------------------ kinematics
-
-
-def poses_from_demonstration(demonstration, kinematics):
-    """End-effector poses of every sample by forward kinematics.
-
-    Parameters
-    ----------
-    demonstration : Demonstration
-    kinematics : UR5eKinematics
-        Carries ``X_WB`` and ``X_tool0_E``; a library uses ``X_WB = identity``.
-
-    Returns
-    -------
-    X_WE : array, shape (m, 4, 4)
-        Homogeneous matrices.
-    """
-    return kinematics.X_WE_batch(demonstration.joint_positions)
-
-
-def dual_quaternions_from_demonstration(demonstration, kinematics):
-    """End-effector poses of every sample as dual quaternions, shape (m, 8)."""
-    return dual_quaternion_from_matrices(poses_from_demonstration(demonstration, kinematics))

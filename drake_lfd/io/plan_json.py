@@ -1,11 +1,11 @@
-"""The JSON form of a plan or demonstration request (INTERFACES.md, ``plan --json``).
+"""The JSON form of a plan or demonstration request (``plan --json``, documented in docs/cli.rst).
 
 Not for: computing plans (``planning.py``).
 """
 
 from __future__ import annotations
 
-from drake_lfd.core.dual_quaternion import pose_from_dual_quaternion
+from drake_lfd.core.dual_quaternion import translation_rotation_from_dual_quaternion
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
 
@@ -46,7 +46,7 @@ def plan_json(result: PlanResult) -> dict:
     poses = []
     critical_indices = []
     if result.timed is not None:
-        p, q = pose_from_dual_quaternion(result.timed.poses)
+        p, q = translation_rotation_from_dual_quaternion(result.timed.poses)
         poses = [
             {"t": float(t), "p": _floats(pi), "q_wxyz": _floats(qi if qi[0] >= 0 else -qi)}
             for t, pi, qi in zip(result.timed.times, p, q)

@@ -1,7 +1,7 @@
 """Poses in files: the JSON form ``{"p": [x, y, z], "q_wxyz": [w, x, y, z]}``.
 
 Every JSON that drake-lfd writes (library manifests, ``--json`` reports) states poses in
-this form (INTERFACES.md, "Frames and units"), so anyone can rebuild them with their own
+this form (docs/cli.rst), so anyone can rebuild them with their own
 tools. This module converts between it and pydrake's ``RigidTransform`` and checks what
 a user's file holds: finite numbers and a quaternion of unit norm (within 1e-6, then
 normalised). Problems are :class:`~drake_lfd.core.errors.InputError` naming file and field.

@@ -1,10 +1,10 @@
-"""Task files: critical configurations, obstacles, shells, constraints (Eq. 10, SPEC 4).
+"""Task files: the YAML form of a task, read and checked into a :class:`~drake_lfd.core.tasks.Task`.
 
-A task ``TK`` is a sequence of critical configurations ``con_i = <P_i, theta_i>`` the
-end-effector frame E must pass through, numbered from 1 as in the paper. A task file is
-YAML, loaded with ``pydrake.common.yaml.yaml_load_typed`` into the ``*Spec`` dataclasses
-below (unknown keys are errors), then checked into a :class:`Task`. Each evaluation trial
-draws a :class:`ConcreteTask` from it with :func:`draw_trial`.
+A task file is YAML, loaded with ``pydrake.common.yaml.yaml_load_typed`` into the
+``*Spec`` dataclasses below (unknown keys are errors), then checked value by value into
+the :class:`~drake_lfd.core.tasks.Task` of :mod:`drake_lfd.core.tasks` (Eq. 10), whose
+:func:`~drake_lfd.core.tasks.draw_trial` makes each evaluation trial. The format is
+documented for users in docs/task_files.rst.
 
 Example, the paper's Table 8 (filling and pouring)::
 
@@ -37,12 +37,13 @@ Values:
   gets the same value: Table 7's ``z`` of con_2 and con_3, Table 8's ``(x, y)`` of
   con_4 and con_5). A position range is trial-to-trial variation, not a planner freedom.
 - Orientations ``euler_zyx: [yaw, pitch, roll]`` in radians, ``R = Rz(yaw) Ry(pitch)
-  Rx(roll)`` (Eq. 17, SPEC 2). Each angle is fixed, or bounded ``[lower, upper]``: a
-  freedom the planner chooses among the grid :func:`angle_candidates` (every
-  ``angle_grid_deg`` or finer, both bounds included). Angles may be written as numbers,
-  as multiples of pi (``pi``, ``-pi/2``, ``3*pi/4``, ``0.5pi``) or in degrees
-  (``-90deg``), so the paper's values stay readable. Each bounded angle is chosen per
-  critical configuration; variables are for positions only.
+  Rx(roll)`` (Eq. 17; docs/method.rst, Conventions). Each angle is fixed, or bounded
+  ``[lower, upper]``: a freedom the planner chooses among the grid
+  :func:`~drake_lfd.core.tasks.angle_candidates` (every ``angle_grid_deg`` or finer,
+  both bounds included). Angles may be written as numbers, as multiples of pi (``pi``,
+  ``-pi/2``, ``3*pi/4``, ``0.5pi``) or in degrees (``-90deg``), so the paper's values
+  stay readable. Each bounded angle is chosen per critical configuration; variables are
+  for positions only.
 - ``path_constraints[*].between: [j, k]`` are critical configuration numbers (1-based,
   ``j < k``); ``kind: orientation`` asks the tool orientation to stay within
   ``tolerance_deg`` of ``euler_zyx`` from con_j to con_k.
@@ -50,58 +51,51 @@ Values:
 
 Every problem is an :class:`~drake_lfd.core.errors.InputError` naming the file and the field
 (``critical_configurations[3].p[2]``, list indices from 0; the message also names the
-1-based ``con_4``). Not for: planning (the planners), simulating the scene (the
-closed-loop modules), random training tasks beyond :meth:`ConcreteTask.from_fixed`.
+1-based ``con_4``).
+
+Not for: the task types themselves, drawing trials or angle grids (all in
+:mod:`drake_lfd.core.tasks`, which reads no files), planning, simulating the scene.
 """
 
-
 import dataclasses
-import itertools
 import math
 import re
 from pathlib import Path
 from typing import Union
 
-import numpy as np
-from pydrake.math import RigidTransform
-
 from drake_lfd.core.errors import InputError
+from drake_lfd.core.tasks import (
+    DEFAULT_ANGLE_GRID_DEG,
+    MIN_CRITICAL_CONFIGURATIONS,
+    PATH_CONSTRAINT_KINDS,
+    Box,
+    CriticalConfiguration,
+    PathConstraint,
+    Task,
+)
 
 # The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
-# scripts. angle_from_text and rigid_transform_from_euler_zyx stay importable from here.
-from drake_lfd.io.yaml_checks import (
-    Scalar,
-    angle,
-    angle_from_text,  # noqa: F401 (re-exported)
-    finite,
-    load_spec,
-    pose,
-    read_text,
-    required,
-    rigid_transform_from_euler_zyx,  # noqa: F401 (re-exported)
-    vector,
-)
-from drake_lfd.core.read_only_arrays import read_only_array
+# scripts, so both report problems alike.
+from drake_lfd.io.yaml_checks import PoseSpec, Scalar, angle, finite, load_spec, pose, read_text, required, vector
+
+__all__ = [
+    "CriticalConfigurationSpec",
+    "BoxSpec",
+    "PathConstraintSpec",
+    "TaskSpec",
+    "load_task_spec",
+    "task_spec_from_text",
+    "task_from_spec",
+    "load_task",
+]
 
 # No ``from __future__ import annotations`` here: yaml_load_typed reads the Spec fields'
 # types at run time and needs them as types, not strings.
-
-DEFAULT_ANGLE_GRID_DEG = 15.0
-MIN_CRITICAL_CONFIGURATIONS = 2
-PATH_CONSTRAINT_KINDS = ("orientation",)
 
 # ------------------------------------------------------------------ schema (the YAML)
 
 # A coordinate or angle: a number-like token, or a [lower, upper] list of them.
 Entry = Union[list[Scalar], float, int, str]
-
-
-@dataclasses.dataclass
-class PoseSpec:
-    """A fixed pose: ``p`` in metres, ``euler_zyx`` = [yaw, pitch, roll] in radians."""
-
-    p: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
-    euler_zyx: list[Scalar] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
 
 
 @dataclasses.dataclass
@@ -151,216 +145,6 @@ class TaskSpec:
     obstacles: list[BoxSpec] = dataclasses.field(default_factory=list)
     safety_shells: list[BoxSpec] = dataclasses.field(default_factory=list)
     path_constraints: list[PathConstraintSpec] = dataclasses.field(default_factory=list)
-
-
-# ------------------------------------------------------------------ checked task types
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class Box:
-    """An axis-aligned box: ``centre`` (3,) and full edge lengths ``size`` (3,), metres."""
-
-    name: str
-    centre: np.ndarray
-    size: np.ndarray
-
-    def __post_init__(self):
-        object.__setattr__(self, "centre", read_only_array(self.centre, (3,)))
-        object.__setattr__(self, "size", read_only_array(self.size, (3,)))
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class PathConstraint:
-    """Keep the tool orientation within ``tolerance_rad`` of ``euler_zyx`` (3,) from
-    ``con_from`` to ``con_to`` (1-based, inclusive)."""
-
-    kind: str
-    con_from: int
-    con_to: int
-    euler_zyx: np.ndarray
-    tolerance_rad: float
-
-    def __post_init__(self):
-        object.__setattr__(self, "euler_zyx", read_only_array(self.euler_zyx, (3,)))
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class CriticalConfiguration:
-    """``con_i`` as the task file states it, with its ranges.
-
-    Attributes
-    ----------
-    p_lower, p_upper : array, shape (3,)
-        Position bounds (equal for a fixed coordinate), metres.
-    p_variables : tuple of 3 (str or None)
-        The variable each coordinate names, or None.
-    euler_zyx_lower, euler_zyx_upper : array, shape (3,)
-        [yaw, pitch, roll] bounds (equal for a fixed angle), radians.
-    """
-
-    p_lower: np.ndarray
-    p_upper: np.ndarray
-    p_variables: tuple
-    euler_zyx_lower: np.ndarray
-    euler_zyx_upper: np.ndarray
-
-    def __post_init__(self):
-        for name in ("p_lower", "p_upper", "euler_zyx_lower", "euler_zyx_upper"):
-            object.__setattr__(self, name, read_only_array(getattr(self, name), (3,)))
-        object.__setattr__(self, "p_variables", tuple(self.p_variables))
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class Task:
-    """A checked task file (SPEC 4); :func:`draw_trial` makes concrete trials of it."""
-
-    name: str
-    critical_configurations: tuple
-    X_WB: RigidTransform = dataclasses.field(default_factory=RigidTransform)
-    X_tool0_E: RigidTransform = dataclasses.field(default_factory=RigidTransform)
-    angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
-    variables: dict = dataclasses.field(default_factory=dict)  # name -> (lower, upper)
-    obstacles: tuple = ()
-    safety_shells: tuple = ()
-    path_constraints: tuple = ()
-    description: str = ""
-    file: str | None = None
-
-    def __len__(self):
-        return len(self.critical_configurations)
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class ConcreteCriticalConfiguration:
-    """``con_i`` of one trial: a fixed position, angles fixed or bounded.
-
-    Attributes
-    ----------
-    p : array, shape (3,)
-        Position in W, metres.
-    euler_zyx_lower, euler_zyx_upper : array, shape (3,)
-        [yaw, pitch, roll] bounds in radians; equal where the angle is fixed.
-    angle_grid_deg : float
-        Grid step for the bounded angles (:func:`angle_candidates`).
-    """
-
-    p: np.ndarray
-    euler_zyx_lower: np.ndarray
-    euler_zyx_upper: np.ndarray
-    angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
-
-    def __post_init__(self):
-        for name in ("p", "euler_zyx_lower", "euler_zyx_upper"):
-            object.__setattr__(self, name, read_only_array(getattr(self, name), (3,)))
-        if np.any(self.euler_zyx_lower > self.euler_zyx_upper):
-            raise ValueError("euler_zyx_lower must be <= euler_zyx_upper")
-        if not self.angle_grid_deg > 0.0:
-            raise ValueError(f"angle_grid_deg must be > 0, got {self.angle_grid_deg}")
-
-    @classmethod
-    def fixed(cls, p, euler_zyx):
-        """A configuration with every angle fixed."""
-        return cls(p=p, euler_zyx_lower=euler_zyx, euler_zyx_upper=euler_zyx)
-
-    @property
-    def is_orientation_fixed(self) -> bool:
-        return bool(np.all(self.euler_zyx_lower == self.euler_zyx_upper))
-
-    @property
-    def euler_zyx(self) -> np.ndarray:
-        """The fixed [yaw, pitch, roll], shape (3,); ValueError if any angle is bounded."""
-        if not self.is_orientation_fixed:
-            raise ValueError("this configuration has bounded angles; choose one of angle_candidates()")
-        return self.euler_zyx_lower
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class ConcreteTask:
-    """One trial of a task: every position drawn, bounded angles still free."""
-
-    name: str
-    critical_configurations: tuple
-    X_WB: RigidTransform = dataclasses.field(default_factory=RigidTransform)
-    X_tool0_E: RigidTransform = dataclasses.field(default_factory=RigidTransform)
-    obstacles: tuple = ()
-    safety_shells: tuple = ()
-    path_constraints: tuple = ()
-    seed: int | None = None
-    variable_values: dict = dataclasses.field(default_factory=dict)  # name -> drawn value
-    file: str | None = None
-
-    def __post_init__(self):
-        object.__setattr__(self, "critical_configurations", tuple(self.critical_configurations))
-
-    def __len__(self):
-        return len(self.critical_configurations)
-
-    @property
-    def positions(self) -> np.ndarray:
-        """Positions of con_1 .. con_n, shape (n, 3)."""
-        return np.array([con.p for con in self.critical_configurations])
-
-    @classmethod
-    def from_fixed(cls, name, positions, euler_zyx, **kwargs):
-        """A task with every angle fixed (for example a random training task).
-
-        Parameters
-        ----------
-        name : str
-        positions : array-like, shape (n, 3)
-        euler_zyx : array-like, shape (n, 3)
-            [yaw, pitch, roll] per configuration, radians.
-        **kwargs
-            Other :class:`ConcreteTask` fields (``X_WB``, ``obstacles``, ...).
-        """
-        positions = np.asarray(positions, dtype=float)
-        euler_zyx = np.asarray(euler_zyx, dtype=float)
-        return cls(
-            name=name,
-            critical_configurations=tuple(
-                ConcreteCriticalConfiguration.fixed(p, e) for p, e in zip(positions, euler_zyx)
-            ),
-            **kwargs,
-        )
-
-
-# ------------------------------------------------------------------------------ angles
-
-
-def angle_grid(lower, upper, step_rad):
-    """Samples of a bounded angle: ``lower`` to ``upper``, both included, evenly spaced
-    at most ``step_rad`` apart. A fixed angle (``lower == upper``) gives one sample.
-
-    Returns
-    -------
-    angles : array, shape (k,)
-    """
-    span = float(upper) - float(lower)
-    if span <= 0.0:
-        return np.array([float(lower)])
-    count = int(math.ceil(span / step_rad - 1e-9)) + 1
-    return np.linspace(float(lower), float(upper), count)
-
-
-def angle_candidates(con):
-    """Every [yaw, pitch, roll] the planner may choose for ``con`` (SPEC 4).
-
-    Fixed angles keep their value; each bounded one runs over :func:`angle_grid` with
-    ``con.angle_grid_deg``; the result is their Cartesian product (yaw slowest).
-    A full turn such as ``[-pi, pi]`` includes both ends (the same rotation).
-
-    Parameters
-    ----------
-    con : ConcreteCriticalConfiguration
-
-    Returns
-    -------
-    candidates : array, shape (k, 3)
-        Rows are (yaw, pitch, roll) in radians; iterate to get triples.
-    """
-    step = math.radians(con.angle_grid_deg)
-    axes = [angle_grid(lo, hi, step) for lo, hi in zip(con.euler_zyx_lower, con.euler_zyx_upper)]
-    return np.array(list(itertools.product(*axes)), dtype=float).reshape(-1, 3)
 
 
 # ----------------------------------------------------------------------------- loading
@@ -582,61 +366,3 @@ def load_task(path):
         Naming the file and the field.
     """
     return task_from_spec(load_task_spec(path), file=Path(path))
-
-
-# ------------------------------------------------------------------------------ trials
-
-
-def draw_trial(task, seed):
-    """Draws one concrete trial of a task (the paper runs 20 per task).
-
-    Variables are drawn first, uniformly in their ranges, in sorted name order; then
-    each inline position range, con by con, x before y before z. Fixed values draw
-    nothing. Bounded angles stay bounded (the planner chooses them).
-
-    Parameters
-    ----------
-    task : Task
-    seed : int
-        Non-negative; the same seed gives the same trial.
-
-    Returns
-    -------
-    trial : ConcreteTask
-    """
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"expected a non-negative integer, got {seed!r}", field="seed")
-    rng = np.random.default_rng(int(seed))
-    values = {name: float(rng.uniform(*task.variables[name])) for name in sorted(task.variables)}
-    cons = []
-    for con in task.critical_configurations:
-        p = np.empty(3)
-        for axis in range(3):
-            variable = con.p_variables[axis]
-            lower, upper = con.p_lower[axis], con.p_upper[axis]
-            if variable is not None:
-                p[axis] = values[variable]
-            elif lower == upper:
-                p[axis] = lower
-            else:
-                p[axis] = rng.uniform(lower, upper)
-        cons.append(
-            ConcreteCriticalConfiguration(
-                p=p,
-                euler_zyx_lower=con.euler_zyx_lower,
-                euler_zyx_upper=con.euler_zyx_upper,
-                angle_grid_deg=task.angle_grid_deg,
-            )
-        )
-    return ConcreteTask(
-        name=task.name,
-        critical_configurations=tuple(cons),
-        X_WB=task.X_WB,
-        X_tool0_E=task.X_tool0_E,
-        obstacles=task.obstacles,
-        safety_shells=task.safety_shells,
-        path_constraints=task.path_constraints,
-        seed=int(seed),
-        variable_values=values,
-        file=task.file,
-    )

@@ -1,9 +1,9 @@
 """Checks for user YAML files read with pydrake's ``yaml_load_typed`` into dataclasses.
 
-Task files (``tasks.py``) and guidance scripts (``kinesthetic.py``) are YAML loaded with
-``pydrake.common.yaml.yaml_load_typed`` into ``*Spec`` dataclasses. Run alone, that
-function names only the leaf of a bad value, and PyYAML silently keeps the last of two
-equal keys. So :func:`load_spec` first reads the raw YAML (refusing duplicated keys)
+Task files (``task_files.py``) and guidance scripts (``guidance_scripts.py``) are YAML
+loaded with ``pydrake.common.yaml.yaml_load_typed`` into ``*Spec`` dataclasses. Run
+alone, that function names only the leaf of a bad value, and PyYAML silently keeps the
+last of two equal keys. So :func:`load_spec` first reads the raw YAML (refusing duplicated keys)
 and checks it against the Spec types (:func:`check_schema`), and only then calls
 ``yaml_load_typed``. :func:`finite`, :func:`angle`, :func:`vector` and :func:`pose`
 then convert and check the values. Every problem becomes one
@@ -14,10 +14,11 @@ Conventions of the Spec dataclasses: a field made with :func:`required` must be
 present; a field's ``metadata["expected"]`` says in words what a union field accepts;
 angles can be written as numbers, as multiples of pi or in degrees
 (:func:`angle_from_text`); orientations are ``euler_zyx: [yaw, pitch, roll]``,
-``R = Rz(yaw) Ry(pitch) Rx(roll)`` (SPEC 2, :func:`rigid_transform_from_euler_zyx`).
+``R = Rz(yaw) Ry(pitch) Rx(roll)`` (docs/method.rst, Conventions;
+:func:`~drake_lfd.core.tasks.rigid_transform_from_euler_zyx`).
 
 Not for: what a file means (its own module checks that: ranges, ordering, names), nor
-for logs and libraries (``demonstrations.py``, ``library.py``).
+for logs and libraries (``demonstration_logs.py``, ``library.py``).
 """
 
 # No ``from __future__ import annotations``: :data:`Scalar` is used in the Spec
@@ -33,9 +34,26 @@ from typing import Union
 import numpy as np
 import yaml
 from pydrake.common.yaml import yaml_load_typed
-from pydrake.math import RigidTransform, RollPitchYaw
 
 from drake_lfd.core.errors import InputError
+from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
+
+__all__ = [
+    "Scalar",
+    "required",
+    "PoseSpec",
+    "UniqueKeyLoader",
+    "yaml_error",
+    "read_text",
+    "load_spec",
+    "kind_of",
+    "check_schema",
+    "angle_from_text",
+    "finite",
+    "angle",
+    "vector",
+    "pose",
+]
 
 # One number-like token: a YAML number, or a string such as "-pi/2", "90deg", "1e-3".
 Scalar = Union[float, int, str]
@@ -46,6 +64,15 @@ _DESCRIPTIONS = {Scalar: "a number"}
 def required(factory):
     """A Spec dataclass field that :func:`check_schema` requires in the file."""
     return dataclasses.field(default_factory=factory, metadata={"required": True})
+
+
+@dataclasses.dataclass
+class PoseSpec:
+    """A fixed pose: ``p`` in metres, ``euler_zyx`` = [yaw, pitch, roll] in radians
+    (identity if absent); :func:`pose` checks it into a ``RigidTransform``."""
+
+    p: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    euler_zyx: list[Scalar] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
 
 
 # ----------------------------------------------------------------------------- reading
@@ -304,12 +331,6 @@ def angle_from_text(text):
             value /= float(divisor)
         return -value if sign == "-" else value
     return None
-
-
-def rigid_transform_from_euler_zyx(p, euler_zyx):
-    """The ``RigidTransform`` of a position and [yaw, pitch, roll] (``Rz Ry Rx``, SPEC 2)."""
-    yaw, pitch, roll = (float(v) for v in euler_zyx)
-    return RigidTransform(RollPitchYaw(roll, pitch, yaw), np.asarray(p, dtype=float))
 
 
 def finite(value, *, file, field, what="a number"):

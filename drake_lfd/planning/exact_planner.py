@@ -1,4 +1,4 @@
-"""The exact planner: the optimal composition as a shortest path (SPEC 7, beyond the paper).
+"""The exact planner: the optimal composition as a shortest path (beyond the paper).
 
 Rewards are deterministic and additive, so the least-cost composition is a shortest path
 over states ``(j, a_j)`` of a :class:`~drake_lfd.planning.composition.CompositionProblem`, solved
@@ -6,7 +6,11 @@ exactly by backward dynamic programming (the graph is a DAG: spans only move for
 Ties are broken towards fewer demonstrations (a cost of ``TIE_BREAK_PER_STEP`` per step,
 far below any alpha that matters), then towards the earlier (demo, span, candidate).
 
-It is both a user option (``--planner exact``) and the oracle for the Q-policy.
+It is both a user option (``--planner exact``, docs/cli.rst) and the oracle for the
+Q-policy (docs/method.rst, "Planning").
+
+Not for: learning (``q_learning.py``) or the MDP's episodes (``mdp.py``); it reads the
+legal-action table of ``composition.py`` directly.
 """
 
 from __future__ import annotations
@@ -14,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from drake_lfd.planning.composition import CompositionProblem, Step
+
+__all__ = ["TIE_BREAK_PER_STEP", "cost_to_go", "plan_exact"]
 
 TIE_BREAK_PER_STEP = 1e-6
 

@@ -1,22 +1,27 @@
 """The composition MDP as a ``gymnasium.Env`` (optional extra ``drake-lfd[gym]``).
 
-For users who want to try other RL algorithms on the paper's problem. One episode plans
-one task drawn at reset: half the time a Section 6.2 random task, half the time a task
-chained from library demonstrations (plannable by construction), so an agent sees both
-dead ends and complete compositions.
+For users who want to try other RL algorithms on the paper's problem. The MDP itself
+(states, the paper's action set, legality, transitions, rewards, the penalty) is the one
+of ``mdp.py`` that drake-lfd's own Q-learner runs on; this module only encodes it for
+Gymnasium (see docs/method.rst, "Planning"). One episode plans one task drawn at reset:
+half the time a Section 6.2 random task, half the time a task chained from library
+demonstrations (plannable by construction), so an agent sees both dead ends and
+complete compositions.
 
-* Action ``a = demo * max_span + (span - 1)`` is the paper's Eq. 29-30: demonstration
-  ``demo`` covers the segment up to ``con_(j + span)``; bounded angles of the span's end
-  take the least-cost legal value. An action that is not semantically similar (or runs
-  past the last con) gets ``illegal_penalty`` and ends the episode (Eq. 31's minus
-  infinity, Algorithm 1's ``Break``).
+* Action ``a = demo * max_span + (span - 1)`` is the MDP's (demo, span end
+  ``j + span``) pair of Eq. 29-30; bounded angles of the span's end take the least-cost
+  legal value (``CompositionMDP.action_for``). An action that is not semantically
+  similar (or runs past the last con) ends the episode with the MDP's penalty,
+  ``illegal_penalty`` scaled by the fraction of the task left (Eq. 31's minus infinity,
+  Algorithm 1's ``Break``).
 * Reward: minus the allocation's total alpha (Eq. 31).
 * Observation (float32, 10 values): segments remaining / 3, then the relative motion to
   the next critical configuration in the current one's frame (rotation quaternion w >= 0,
   unit translation direction, translation length in metres clipped to 2), and the
   fraction of the task done.
 
-Not for: drake-lfd's own training (``q_learning.py`` uses the tabular afterstate form).
+Not for: drake-lfd's own training (``q_learning.py`` uses the tabular afterstate form
+on the same MDP).
 """
 
 from __future__ import annotations
@@ -27,20 +32,40 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from drake_lfd.planning.composition import CompositionProblem
-from drake_lfd.core.dual_quaternion import dual_quaternion_canonical, dual_quaternion_relative, translation_from_dual_quaternion
+from drake_lfd.core.dual_quaternion import (
+    dual_quaternion_canonical,
+    dual_quaternion_relative,
+    translation_from_dual_quaternion,
+)
 from drake_lfd.core.features import Feature
+from drake_lfd.planning.composition import CompositionProblem
+from drake_lfd.planning.mdp import DEFAULT_PENALTY, CompositionMDP, State
 from drake_lfd.planning.planner import build_problem
 from drake_lfd.planning.random_tasks import chained_task, random_training_task
 
+__all__ = ["CompositionEnv"]
+
 
 class CompositionEnv(gymnasium.Env):
-    """Gymnasium environment of the composition MDP (SPEC 7)."""
+    """Gymnasium environment of the composition MDP (``mdp.CompositionMDP``).
+
+    Parameters
+    ----------
+    features : mapping of demo name to Feature
+        The library.
+    num_cons : int
+        Critical configurations of each task drawn at reset.
+    max_span : int
+        Longest span an action covers; the action space has ``len(features) * max_span``
+        actions.
+    illegal_penalty : float
+        The MDP's base penalty (its value at con_1; later scaled by the task left).
+    """
 
     metadata = {"render_modes": []}
 
     def __init__(self, features: Mapping[str, Feature], *, num_cons: int = 4, max_span: int = 3,
-                 illegal_penalty: float = -10.0):
+                 illegal_penalty: float = DEFAULT_PENALTY):
         self.features = dict(features)
         self.num_cons = int(num_cons)
         self.max_span = int(max_span)
@@ -49,8 +74,13 @@ class CompositionEnv(gymnasium.Env):
         low = np.array([0, -1, -1, -1, -1, -1, -1, -1, 0, 0], dtype=np.float32)
         high = np.array([1, 1, 1, 1, 1, 1, 1, 1, 2, 1], dtype=np.float32)
         self.observation_space = spaces.Box(low=low, high=high, dtype=np.float32)
-        self.problem: CompositionProblem | None = None
-        self.state = (0, 0)
+        self.mdp: CompositionMDP | None = None
+        self.state = State(0, 0)
+
+    @property
+    def problem(self) -> CompositionProblem | None:
+        """The composition problem of the current episode's task."""
+        return None if self.mdp is None else self.mdp.problem
 
     def _observation(self) -> np.ndarray:
         j, a = self.state
@@ -75,22 +105,16 @@ class CompositionEnv(gymnasium.Env):
             task = random_training_task(self.np_random, self.num_cons)
         else:
             task, _ = chained_task(self.np_random, self.features, self.num_cons)
-        self.problem = build_problem(task, self.features, max_span=self.max_span)
-        self.state = (0, 0)
-        return self._observation(), {"num_cons": self.problem.num_cons}
+        problem = build_problem(task, self.features, max_span=self.max_span)
+        self.mdp = CompositionMDP(problem, self.illegal_penalty)
+        self.state = self.mdp.start_states()[0]
+        return self._observation(), {"num_cons": problem.num_cons}
 
     def step(self, action):
         action = int(action)
         if not self.action_space.contains(action):
             raise ValueError(f"action {action} is outside {self.action_space}")
         demo, span = divmod(action, self.max_span)
-        j, a = self.state
-        k = j + span + 1
-        matrix = self.problem.cost.get((j, k, demo))
-        row = None if matrix is None else matrix[a]
-        if row is None or not np.isfinite(row).any():
-            return self._observation(), self.illegal_penalty, True, False, {"legal": False}
-        a_k = int(np.argmin(row))
-        self.state = (k, a_k)
-        done = k == self.problem.num_cons - 1
-        return self._observation(), float(-row[a_k]), done, False, {"legal": True}
+        transition = self.mdp.step(self.state, self.mdp.action_for(self.state, demo, self.state.j + span + 1))
+        self.state = transition.state
+        return self._observation(), transition.reward, transition.terminated, False, {"legal": transition.legal}

@@ -6,7 +6,7 @@ Q-policy, map each chosen demonstration onto its span (Eq. 22-25 plus the exact
 correction), join the spans, and attach times (``timing.py``). Joins are continuous in
 pose; the timing law brings the tool to rest at every critical configuration, so velocity
 is continuous too (zero at joins). When no composition exists, report every uncovered
-segment and the relative motion it needs (SPEC 7).
+segment and the relative motion it needs (docs/method.rst, Planning).
 
 Not for: reading files (``tasks.py``, ``library.py``) or running the robot.
 """
@@ -31,7 +31,7 @@ from drake_lfd.core.features import Feature
 from drake_lfd.core.mapping import map_segment
 from drake_lfd.planning.q_learning import DEFAULT_REFINE_EPISODES, QPolicy, plan_q
 from drake_lfd.core.similarity import Tolerances
-from drake_lfd.io.task_files import ConcreteTask, angle_candidates
+from drake_lfd.core.tasks import ConcreteTask, angle_candidates
 from drake_lfd.core.timing import (
     DEFAULT_MAX_ANGULAR_SPEED_RAD_S,
     DEFAULT_MAX_SPEED_M_S,
@@ -205,7 +205,7 @@ def path_clearance(poses: np.ndarray, keep_out=(), floor_z: float | None = None,
 
 def map_span_clear(feature_poses, allocation, task_poses, keep_out=(), floor_z=None, points_E=None):
     """Maps a demo onto a span, choosing the free twist about the task's first translation
-    (SPEC 6) that keeps the tool path clear of the keep-out boxes and the floor.
+    (docs/method.rst, Mapping) that keeps the tool path clear of the keep-out boxes and the floor.
 
     Each twist (30 deg steps) is scored by the path's total shortfall below
     ``CLEARANCE_GOAL_M`` (summed over samples and tracked points, so a critical

@@ -1,5 +1,9 @@
 """Q-learning of a general composition policy (Algorithm 1) and the greedy walk (Algorithm 2).
 
+The episodes run on the composition MDP of ``mdp.py`` (states ``(j, a_j)``, the paper's
+action set with its illegal (demo, span) pairs, rewards, the dead-end penalty); this
+module adds only the learning. See docs/method.rst, "Planning".
+
 The Q-function is kept in the *afterstate* form (Sutton & Barto, Section 6.8)::
 
     Q(s, a) = r(s, a) + gamma * W(key(s'))
@@ -8,64 +12,97 @@ where ``r(s, a)`` is minus the allocation's total alpha (Eq. 31), known exactly 
 similarity test, ``s'`` the state the action leads to, ``key`` the task-independent
 abstraction of ``state_abstraction.py``, and ``W`` a table learned with Eq. 33's update
 applied to the afterstate: ``W(key(s')) <- (1 - lr) W + lr * max_a' Q(s', a')``, with
-``W = 0`` at the goal and the episode-ending ``penalty`` (the paper's minus infinity)
-when ``s'`` has no legal action, scaled by the fraction of the task left undone (so
-an episode that gets further before it dead-ends earns more: a learning signal even on
-training tasks no composition covers, which with the paper's random tasks are most). Keying by abstract states is what lets one table,
-trained on random tasks, plan unseen ones (SPEC 7); legal actions always come from the
-similarity test, so every plan is valid even in states never seen in training.
+``W = 0`` at the goal and the MDP's penalty (the paper's minus infinity, scaled by the
+fraction of the task left) when ``s'`` is a dead end. Illegal actions have their own
+learned Q values (``QPolicy.illegal_values``), so the agent learns to avoid them. Keying
+by abstract states is what lets one table, trained on random tasks, plan unseen ones;
+legal actions always come from the similarity test, so every plan is valid even in
+states never seen in training.
 
 Parameters (Table 6 and what the paper leaves open):
 
-* ``discount`` 0.9 and ``epsilon`` 0.8 as in Table 6. ``epsilon`` is used as the
-  probability of taking the greedy action (exploring with probability 0.2); pass
-  ``epsilon=0.2`` for the other reading.
+* ``discount`` 0.9 as in Table 6.
+* ``greedy_probability`` 0.8: Table 6's epsilon 0.8, read as the probability of taking
+  the greedy action (so the agent explores with probability 0.2); pass
+  ``greedy_probability=0.2`` for the other reading. Policy files written before the
+  rename call it ``epsilon`` and are still read (``io/policy_files.py``).
 * ``learning_rate`` 0.5: rewards are deterministic, so a large step converges in few
   episodes; the abstraction merges states, so it is kept below 1 to average them.
+* ``penalty`` -10: the MDP's base penalty.
 * ``W`` starts at 0 (optimistic, since rewards are <= 0), which drives exploration
   more reliably than the paper's random initialisation; the seed fixes everything.
 
 Plan-time refinement (beyond the paper's Algorithm 2, in the spirit of its retraining):
 before the greedy walk, ``DEFAULT_REFINE_EPISODES`` episodes of the same Q-learning run
 on the task's own states, seeded by the general table. A tabular key cannot tell apart
-tasks that look alike but cost differently, so the general table alone walks 5-8 %
+tasks that look alike but cost differently, so the general table alone walks 4-10 %
 above the optimum on 100 held-out chained tasks; after refinement 0.0 % (measured by
 ``benchmarks/bench_planners.py``), at a cost of a few milliseconds.
 
-Adding a demonstration adds actions but no keys, so a saved table warm-starts retraining
-(``train(..., policy=old)``). Policies are JSON files with a format version.
+Adding a demonstration adds actions but no keys, so a trained table warm-starts
+retraining (``train(..., policy=old)``; measured by ``benchmarks/bench_warm_start.py``).
+
+Not for: the MDP's definition (``mdp.py``), legality (``composition.py``), or policy
+files (``io/policy_files.py``: this layer does not write files).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
-from pathlib import Path
+import time
 from typing import Callable, Sequence
 
 import numpy as np
 
-from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.planning.composition import CompositionProblem, Step
-from drake_lfd.core.errors import InputError
 from drake_lfd.planning.exact_planner import plan_exact
-from drake_lfd.planning.state_abstraction import GOAL_KEY, state_key
+from drake_lfd.planning.mdp import DEFAULT_PENALTY, CompositionMDP, State
+from drake_lfd.planning.state_abstraction import GOAL_KEY
 
-POLICY_FORMAT_VERSION = 1
+__all__ = [
+    "QLearningParameters",
+    "QPolicy",
+    "TrainingResult",
+    "QPlan",
+    "DEFAULT_REFINE_EPISODES",
+    "GENERAL_PRIOR_WEIGHT",
+    "episodes_to_steady",
+    "train",
+    "greedy_walk",
+    "plan_q",
+]
 
 
 @dataclasses.dataclass(frozen=True)
 class QLearningParameters:
+    """Parameters of Algorithm 1 (see the module docstring for the choices).
+
+    Attributes
+    ----------
+    discount : float
+        gamma of Eq. 33.
+    greedy_probability : float
+        Probability of the greedy action in an exploring episode (Table 6's epsilon 0.8
+        read that way); otherwise a uniformly random action of the paper's action set.
+    learning_rate : float
+        Step of Eq. 33's update.
+    episodes : int
+        Episodes per training task.
+    penalty : float
+        The MDP's base penalty for an illegal action or a dead end.
+    """
+
     discount: float = 0.9
-    epsilon: float = 0.8  # probability of the greedy action
+    greedy_probability: float = 0.8
     learning_rate: float = 0.5
     episodes: int = 100
-    penalty: float = -10.0
+    penalty: float = DEFAULT_PENALTY
 
 
 @dataclasses.dataclass
 class QPolicy:
-    """The learned afterstate table and what it was trained with."""
+    """The learned afterstate table and what it was trained with (no file I/O here:
+    ``io/policy_files.py`` saves and loads it)."""
 
     values: dict[str, float] = dataclasses.field(default_factory=dict)
     parameters: QLearningParameters = dataclasses.field(default_factory=QLearningParameters)
@@ -76,47 +113,6 @@ class QPolicy:
 
     def value(self, key: str) -> float:
         return 0.0 if key == GOAL_KEY else self.values.get(key, 0.0)
-
-    # -- files ------------------------------------------------------------------------------
-    def save(self, path: str | Path) -> None:
-        """Writes the policy atomically (temporary file, fsync, rename)."""
-        path = Path(path)
-        document = {
-            "format_version": POLICY_FORMAT_VERSION,
-            "kind": "drake-lfd afterstate Q-table",
-            "parameters": dataclasses.asdict(self.parameters),
-            "library_demos": self.library_demos,
-            "training_episodes": self.training_episodes,
-            "values": dict(sorted(self.values.items())),
-            "illegal_action_values": dict(sorted(self.illegal_values.items())),
-        }
-        atomic_write_bytes(path, (json.dumps(document, indent=1) + "\n").encode())
-
-    @classmethod
-    def load(cls, path: str | Path) -> "QPolicy":
-        path = Path(path)
-        try:
-            document = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise InputError("no such policy file", file=str(path)) from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as error:
-            raise InputError(f"not a JSON policy ({error})", file=str(path)) from None
-        if not isinstance(document, dict) or document.get("format_version") != POLICY_FORMAT_VERSION:
-            raise InputError(
-                f"unsupported policy format (expected format_version {POLICY_FORMAT_VERSION})",
-                file=str(path), field="format_version",
-            )
-        try:
-            values = {str(k): float(v) for k, v in document["values"].items()}
-            illegal = {str(k): float(v) for k, v in document.get("illegal_action_values", {}).items()}
-            parameters = QLearningParameters(**document["parameters"])
-            demos = [str(name) for name in document["library_demos"]]
-            episodes = int(document.get("training_episodes", 0))
-        except (KeyError, TypeError, ValueError, AttributeError) as error:
-            raise InputError(f"malformed policy ({error})", file=str(path)) from None
-        if not all(np.isfinite(v) for v in [*values.values(), *illegal.values()]):
-            raise InputError("non-finite value in the table", file=str(path), field="values")
-        return cls(values, parameters, demos, episodes, illegal)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -133,7 +129,7 @@ class TrainingResult:
 
     @property
     def greedy_curve(self) -> np.ndarray:
-        """Average return of the greedy policy (epsilon 1, the paper's whole action set)
+        """Average return of the greedy policy (greedy probability 1, the paper's whole action set)
         after each episode, over the training tasks: the learning curve of Fig. 7."""
         return self.greedy_rewards.mean(axis=1)
 
@@ -152,26 +148,17 @@ def episodes_to_steady(curve: np.ndarray, window: int = 10, tolerance: float = 0
     return 0 if len(outside) == 0 else int(outside[-1] + 1)
 
 
-def cached_state_key(problem: CompositionProblem, k: int, a_k: int) -> str:
-    """:func:`state_key`, memoised on the problem (episodes revisit the same states)."""
-    cache = problem.__dict__.setdefault("_state_keys", {})
-    key = cache.get((k, a_k))
-    if key is None:
-        key = cache[(k, a_k)] = state_key(problem, k, a_k)
-    return key
-
-
 class _GeneralValues:
     """Afterstate values read and written through the policy's abstract keys."""
 
     def __init__(self, policy: QPolicy):
         self.policy = policy
 
-    def get(self, problem: CompositionProblem, k: int, a: int) -> float:
-        return self.policy.value(cached_state_key(problem, k, a))
+    def get(self, mdp: CompositionMDP, state: State) -> float:
+        return self.policy.value(mdp.state_key(state))
 
-    def set(self, problem: CompositionProblem, k: int, a: int, value: float) -> None:
-        self.policy.values[cached_state_key(problem, k, a)] = value
+    def set(self, mdp: CompositionMDP, state: State, value: float) -> None:
+        self.policy.values[mdp.state_key(state)] = value
 
 
 class _TaskValues:
@@ -187,80 +174,92 @@ class _TaskValues:
 
     def __init__(self, policy: QPolicy):
         self.policy = policy
-        self.values: dict[tuple[int, int], float] = {}
+        self.values: dict[State, float] = {}
 
-    def get(self, problem: CompositionProblem, k: int, a: int) -> float:
-        if k == problem.num_cons - 1:
+    def get(self, mdp: CompositionMDP, state: State) -> float:
+        if mdp.is_goal(state):
             return 0.0
-        value = self.values.get((k, a))
+        value = self.values.get(state)
         if value is None:
-            return GENERAL_PRIOR_WEIGHT * self.policy.value(cached_state_key(problem, k, a))
+            return GENERAL_PRIOR_WEIGHT * self.policy.value(mdp.state_key(state))
         return value
 
-    def set(self, problem: CompositionProblem, k: int, a: int, value: float) -> None:
-        self.values[(k, a)] = value
+    def set(self, mdp: CompositionMDP, state: State, value: float) -> None:
+        self.values[state] = value
 
 
-def _q_values(problem, values, actions, discount) -> np.ndarray:
-    return np.array([-s.cost + discount * values.get(problem, s.k, s.a_k) for s in actions])
+def _q_values(mdp: CompositionMDP, values, state: State, discount: float) -> np.ndarray:
+    """Afterstate Q of the legal actions from ``state``: reward plus the discounted value
+    of where they lead."""
+    afterstates, rewards = mdp.legal_afterstates(state)
+    return rewards + discount * np.array([values.get(mdp, after) for after in afterstates])
 
 
-def _start_candidate(problem, values, rng=None, epsilon=1.0) -> int:
-    if rng is not None and rng.random() >= epsilon:
-        return int(rng.integers(problem.num_candidates[0]))
-    return int(np.argmax([values.get(problem, 0, a) for a in range(problem.num_candidates[0])]))
+def _start_state(mdp: CompositionMDP, values, rng=None, greedy_probability: float = 1.0) -> State:
+    starts = mdp.start_states()
+    if rng is not None and rng.random() >= greedy_probability:
+        return starts[int(rng.integers(len(starts)))]
+    return starts[int(np.argmax([values.get(mdp, s) for s in starts]))]
 
 
-def _illegal_actions(problem, j, legal, max_span) -> list[tuple[int, int]]:
-    """(demo, k) pairs of the paper's action set (Eq. 29-30) that are not similar here."""
-    covered = {(step.demo, step.k) for step in legal}
-    last = min(problem.num_cons - 1, j + max_span)
-    return [(d, k) for d in range(problem.num_demos) for k in range(j + 1, last + 1) if (d, k) not in covered]
+class _IllegalKeys:
+    """Keys of the illegal actions' Q values, "state key|demo name|span", per state of
+    one MDP (memoised: episodes revisit the same states)."""
+
+    def __init__(self, mdp: CompositionMDP, demo_names: Sequence[str]):
+        self.mdp = mdp
+        self.demo_names = list(demo_names)
+        self._keys: dict[State, list[str]] = {}
+
+    def __call__(self, state: State) -> list[str]:
+        keys = self._keys.get(state)
+        if keys is None:
+            prefix = self.mdp.state_key(state)
+            keys = self._keys[state] = [f"{prefix}|{self.demo_names[a.demo]}|{a.k - a.j}"
+                                        for a in self.mdp.illegal_actions(state)]
+        return keys
 
 
-def _run_episode(problem, actions_cache, values, parameters, rng, illegal_values=None, demo_names=None,
-                 learn: bool = True) -> float:
-    """One episode of Algorithm 1 (epsilon-greedy, Eq. 33 on afterstates); its reward.
+def _run_episode(mdp: CompositionMDP, values, parameters: QLearningParameters, rng, illegal_values=None,
+                 illegal_keys: _IllegalKeys | None = None, learn: bool = True) -> float:
+    """One episode of Algorithm 1 (epsilon-greedy, Eq. 33 on afterstates); its return.
 
-    With ``illegal_values`` (training), the agent chooses among the paper's whole action
-    set, as Algorithm 1 does: an action that is not similar earns the penalty and ends
-    the episode, and its Q is learned, so the reward curve shows the agent learning to
-    avoid them (Fig. 7). Without it (plan-time refinement) only legal actions are tried.
-    With ``learn=False`` and ``rng=None`` it is a greedy evaluation: nothing is updated.
+    With ``illegal_values`` (training; ``illegal_keys`` names their entries), the agent
+    chooses among the paper's whole action set, as Algorithm 1 does: an illegal action
+    earns the MDP's penalty and ends the episode, and its Q is learned, so the reward
+    curve shows the agent learning to avoid them (Fig. 7). Without it (plan-time
+    refinement) only legal actions are tried. With ``learn=False`` and ``rng=None`` it
+    is a greedy evaluation: nothing is updated.
     """
     p = parameters
-    a = _start_candidate(problem, values, rng, p.epsilon)
-    j, total = 0, 0.0
-    while j < problem.num_cons - 1:
-        penalty = p.penalty * (problem.num_cons - 1 - j) / (problem.num_cons - 1)
-        cached = actions_cache.get((j, a))
-        if cached is None:
-            legal = problem.actions_from(j, a)
-            illegal = [] if illegal_values is None else _illegal_actions(problem, j, legal, problem.max_span)
-            cached = actions_cache[(j, a)] = (legal, illegal)
-        legal, illegal = cached
-        old = values.get(problem, j, a)
-        q = _q_values(problem, values, legal, p.discount)
+    state = _start_state(mdp, values, rng, p.greedy_probability)
+    total = 0.0
+    while not mdp.is_goal(state):
+        penalty = mdp.penalty(state.j)
+        legal = mdp.legal_actions(state)
+        illegal = [] if illegal_values is None else mdp.illegal_actions(state)
+        old = values.get(mdp, state)
+        q = _q_values(mdp, values, state, p.discount)
         if learn:
             # The afterstate's value is that of its best legal continuation (a dead end: penalty).
-            values.set(problem, j, a, old + p.learning_rate * ((q.max() if legal else penalty) - old))
+            values.set(mdp, state, old + p.learning_rate * ((q.max() if legal else penalty) - old))
         if illegal:
-            state = cached_state_key(problem, j, a)
-            illegal_keys = [f"{state}|{demo_names[d]}|{k - j}" for d, k in illegal]
-            q = np.concatenate([q, [illegal_values.get(key, 0.0) for key in illegal_keys]])
+            keys = illegal_keys(state)
+            q = np.concatenate([q, [illegal_values.get(key, 0.0) for key in keys]])
         if len(q) == 0:
             return total + penalty
-        greedy = rng is None or rng.random() < p.epsilon
+        greedy = rng is None or rng.random() < p.greedy_probability
         choice = int(np.argmax(q)) if greedy else int(rng.integers(len(q)))
         if choice >= len(legal):
-            key = illegal_keys[choice - len(legal)]
+            key = keys[choice - len(legal)]
+            transition = mdp.step(state, illegal[choice - len(legal)])
             if learn:
                 old_q = illegal_values.get(key, 0.0)
-                illegal_values[key] = old_q + p.learning_rate * (penalty - old_q)
-            return total + penalty
-        step = legal[choice]
-        total -= step.cost
-        j, a = step.k, step.a_k
+                illegal_values[key] = old_q + p.learning_rate * (transition.reward - old_q)
+            return total + transition.reward
+        transition = mdp.step(state, legal[choice])
+        total += transition.reward
+        state = transition.state
     return total
 
 
@@ -272,14 +271,15 @@ def train(
     seed: int = 0,
     policy: QPolicy | None = None,
     progress: Callable[[int, int], None] | None = None,
+    after_episode: Callable[[int, QPolicy], None] | None = None,
 ) -> TrainingResult:
     """Algorithm 1 on several tasks, episodes interleaved across tasks.
 
-    ``policy`` warm-starts from a saved table (its values are copied, not modified).
-    ``progress(done, total)`` is called after each episode round.
+    ``policy`` warm-starts from a trained table (its values are copied, not modified).
+    ``progress(done, total)`` is called after each episode round;
+    ``after_episode(done, policy)`` too, with the policy being learned (to evaluate it;
+    it must not be modified).
     """
-    import time
-
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
     learned = QPolicy(
@@ -289,19 +289,20 @@ def train(
         training_episodes=(policy.training_episodes if policy else 0),
         illegal_values=dict(policy.illegal_values) if policy else {},
     )
-    caches = [dict() for _ in problems]
+    mdps = [CompositionMDP(problem, parameters.penalty) for problem in problems]
+    keys = [_IllegalKeys(mdp, learned.library_demos) for mdp in mdps]
     values = _GeneralValues(learned)
     rewards = np.zeros((parameters.episodes, len(problems)))
     greedy = np.zeros_like(rewards)
     for episode in range(parameters.episodes):
-        for t, problem in enumerate(problems):
-            rewards[episode, t] = _run_episode(
-                problem, caches[t], values, parameters, rng, learned.illegal_values, learned.library_demos)
-            greedy[episode, t] = _run_episode(
-                problem, caches[t], values, parameters, None, learned.illegal_values, learned.library_demos,
-                learn=False)
+        for t, mdp in enumerate(mdps):
+            rewards[episode, t] = _run_episode(mdp, values, parameters, rng, learned.illegal_values, keys[t])
+            greedy[episode, t] = _run_episode(mdp, values, parameters, None, learned.illegal_values, keys[t],
+                                              learn=False)
         if progress:
             progress(episode + 1, parameters.episodes)
+        if after_episode:
+            after_episode(episode + 1, learned)
     learned.training_episodes += parameters.episodes
     return TrainingResult(learned, rewards, time.perf_counter() - start, greedy)
 
@@ -327,25 +328,24 @@ def greedy_walk(problem: CompositionProblem, policy: QPolicy, *, refine_episodes
     undiscounted: on one task the objective is its total cost, as for the exact planner.
     """
     parameters = policy.parameters
+    mdp = CompositionMDP(problem, parameters.penalty)
     if refine_episodes > 0:
-        # On one task the objective is its total cost, undiscounted, as the exact planner's.
         parameters = dataclasses.replace(parameters, discount=1.0)
         values = _TaskValues(policy)
         rng = np.random.default_rng(seed)
-        cache: dict = {}
         for _ in range(refine_episodes):
-            _run_episode(problem, cache, values, parameters, rng)
+            _run_episode(mdp, values, parameters, rng)
     else:
         values = _GeneralValues(policy)
-    a = _start_candidate(problem, values)
-    j, steps = 0, []
-    while j < problem.num_cons - 1:
-        actions = problem.actions_from(j, a)
+    state = _start_state(mdp, values)
+    steps = []
+    while not mdp.is_goal(state):
+        actions = mdp.legal_actions(state)
         if not actions:
             return None
-        step = actions[int(np.argmax(_q_values(problem, values, actions, parameters.discount)))]
+        step = actions[int(np.argmax(_q_values(mdp, values, state, parameters.discount)))]
         steps.append(step)
-        j, a = step.k, step.a_k
+        state = mdp.step(state, step).state
     return steps
 
 

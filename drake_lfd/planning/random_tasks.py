@@ -6,7 +6,8 @@
   under a random rigid placement, so it is plannable by construction (held-out
   evaluation of the planners).
 
-Not for: task files (``tasks.py``).
+Not for: task files (``io/task_files.py``) or turning tasks into composition problems
+(``planner.build_problem``).
 """
 
 from __future__ import annotations
@@ -17,14 +18,17 @@ import numpy as np
 from pydrake.math import RollPitchYaw, RotationMatrix
 
 from drake_lfd.core.dual_quaternion import (
-    dual_quaternion_from_pose,
+    dual_quaternion_from_translation_rotation,
     dual_quaternion_multiply,
     dual_quaternion_relative,
-    pose_from_dual_quaternion,
     quaternion_from_axis_angle,
+    translation_rotation_from_dual_quaternion,
 )
 from drake_lfd.core.features import Feature
-from drake_lfd.io.task_files import ConcreteTask
+from drake_lfd.core.tasks import ConcreteTask
+
+__all__ = ["TRAINING_CUBE_CENTRE", "TRAINING_CUBE_SIZE", "TRAINING_ANGLES", "random_training_task",
+           "chained_task"]
 
 # A 50 cm cube inside the UR5e's reach (base frame = world frame), in front of the robot.
 TRAINING_CUBE_CENTRE = np.array([0.45, 0.0, 0.35])
@@ -65,7 +69,7 @@ def chained_task(
     exact copy (costs become informative). Returns the task and the demo names used.
     """
     names = list(features)
-    start = dual_quaternion_from_pose(
+    start = dual_quaternion_from_translation_rotation(
         TRAINING_CUBE_CENTRE + rng.uniform(-0.25, 0.25, 3),
         _random_quaternion(rng),
     )
@@ -91,8 +95,9 @@ def chained_task(
         shifts = rng.normal(size=(count, 3))
         shifts *= perturbation_m * rng.uniform(0.0, 1.0, (count, 1)) / np.linalg.norm(shifts, axis=1, keepdims=True)
         poses[1:] = dual_quaternion_multiply(
-            poses[1:], dual_quaternion_from_pose(shifts, quaternion_from_axis_angle(axes, angles)))
-    positions, quaternions = pose_from_dual_quaternion(poses)
+            poses[1:],
+            dual_quaternion_from_translation_rotation(shifts, quaternion_from_axis_angle(axes, angles)))
+    positions, quaternions = translation_rotation_from_dual_quaternion(poses)
     euler = np.array([_euler_zyx_of(q) for q in quaternions])
     return ConcreteTask.from_fixed(name, positions, euler), used
 

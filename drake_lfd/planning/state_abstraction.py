@@ -1,7 +1,8 @@
 """A task-independent key for a planning state, so one Q-table serves unseen tasks.
 
 The paper trains one Q-table on 20 random tasks and applies it to new ones (Section
-6.2-6.3); a table keyed by task-specific states cannot do that (SPEC 7). The key of a
+6.2-6.3); a table keyed by task-specific states cannot do that (docs/method.rst,
+"Planning"). The key of a
 state ``(k, a_k)`` describes what remains to be done from it, in terms that recur across
 tasks:
 
@@ -19,7 +20,8 @@ Finer keys were measured worse: adding how far the rotation is from the cube's (
 many keys, and the greedy walk's mean cost on 100 held-out chained tasks rose from 2.9 %
 to 6.8 % above the optimum (``benchmarks/bench_planners.py``).
 
-Not for: deciding legality (always recomputed from similarity) or learning.
+Not for: deciding legality (always recomputed from similarity), memoising keys (the
+MDP does, ``mdp.CompositionMDP.state_key``) or learning.
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ import numpy as np
 
 from drake_lfd.planning.composition import CompositionProblem
 from drake_lfd.core.dual_quaternion import dual_quaternion_relative, quaternion_from_rotation_matrices
+
+__all__ = ["GOAL_KEY", "MAX_REMAINING", "CUBE_ROTATIONS", "motion_key", "state_key"]
 
 GOAL_KEY = "goal"
 MAX_REMAINING = 3

@@ -5,11 +5,12 @@ Beyond the paper, training can add tasks chained from the library's own demonstr
 demonstrations none of 100 Section-6.2 random tasks is plannable (measured by
 ``benchmarks/bench_planners.py``), so they teach the table only about dead ends; chained
 tasks teach it what completing a task costs (the general table's greedy walk on 100
-held-out chained tasks: 4.9 % above the optimum with 20 chained training tasks, 9.4 %
+held-out chained tasks: 4.0 % above the optimum with 20 chained training tasks, 10.4 %
 without). The default is the paper's training set (no chained tasks): plan-time
-refinement (``q_learning.greedy_walk``) closes the gap either way (0.5 %).
+refinement (``q_learning.greedy_walk``) closes the gap either way (0.0 %).
 
-Not for: the learning rule itself (``q_learning.py``) or plotting (``figures.py``).
+Not for: the learning rule itself (``q_learning.py``), policy files
+(``io/policy_files.py``) or plotting (``experiments/figures.py``).
 """
 
 from __future__ import annotations
@@ -36,6 +37,15 @@ def random_training_problems(
         for i in range(num_tasks)
     ]
 
+
+__all__ = [
+    "DEFAULT_CHAINED_TASKS",
+    "CHAINED_PERTURBATION_DEG",
+    "CHAINED_PERTURBATION_M",
+    "random_training_problems",
+    "chained_training_problems",
+    "train_on_random_tasks",
+]
 
 DEFAULT_CHAINED_TASKS = 0
 CHAINED_PERTURBATION_DEG = 15.0
@@ -68,10 +78,12 @@ def train_on_random_tasks(
     parameters: QLearningParameters | None = None,
     extra_problems: list[CompositionProblem] = (),
     progress: Callable[[int, int], None] | None = None,
+    after_episode: Callable[[int, QPolicy], None] | None = None,
 ) -> TrainingResult:
     """Algorithm 1 on ``num_tasks`` random tasks and ``num_chained_tasks`` chained ones
     (plus ``extra_problems``, e.g. the task that asked for a new demonstration),
-    ``episodes`` episodes each."""
+    ``episodes`` episodes each. ``progress`` and ``after_episode`` are passed to
+    :func:`~drake_lfd.planning.q_learning.train`."""
     parameters = parameters or (warm_start.parameters if warm_start else QLearningParameters())
     parameters = QLearningParameters(**{**parameters.__dict__, "episodes": episodes})
     problems = (
@@ -81,5 +93,5 @@ def train_on_random_tasks(
     )
     return train(
         problems, library_demos=list(features), parameters=parameters, seed=seed,
-        policy=warm_start, progress=progress,
+        policy=warm_start, progress=progress, after_episode=after_episode,
     )

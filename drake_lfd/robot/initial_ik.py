@@ -1,4 +1,4 @@
-"""The UR5e joint configuration at the first critical configuration (SPEC 8).
+"""The UR5e joint configuration at the first critical configuration (inverse kinematics).
 
 Differential IK needs a starting joint configuration. It comes from full inverse
 kinematics of con_1: position and orientation constraints with tight tolerances, the
@@ -7,9 +7,11 @@ the target. A fixed list of initial guesses (the same for every call) covers the
 UR5e's IK branches (shoulder towards / away from the target, elbow up / down, wrist
 flipped or not); among the solutions found, a collision-free one (with respect to
 obstacles and safety shells) is preferred, then the lowest cost, then the earliest
-guess. The result is therefore deterministic for a given task.
+guess. The result is therefore deterministic for a given task. docs/method.rst (Closed
+loop and success) says where this enters a run.
 
-Not for: tracking the plan (``differential_ik.py``).
+Not for: tracking the plan (``systems/differential_ik.py``), forward kinematics
+(``kinematics.py``), the scene's geometry (``scene.py``).
 """
 
 from __future__ import annotations
@@ -24,22 +26,38 @@ from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import Solve
 
 from drake_lfd.core.errors import InputError
+from drake_lfd.core.read_only_arrays import read_only_array
+from drake_lfd.core.tasks import Box
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME
 from drake_lfd.robot.scene import KinematicScene
-from drake_lfd.io.task_files import Box
 
-# Constraint tolerances handed to the solver, and the errors a solution may show when
-# checked by forward kinematics afterwards.
-POSITION_TOLERANCE_M = 1e-6
-ROTATION_TOLERANCE_RAD = 1e-5
+__all__ = [
+    "IK_POSITION_TOLERANCE_M",
+    "IK_ROTATION_TOLERANCE_RAD",
+    "ACCEPTED_POSITION_ERROR_M",
+    "ACCEPTED_ROTATION_ERROR_RAD",
+    "NOMINAL_WEIGHTS",
+    "ELBOW_UP_POSTURE",
+    "UnreachableConfigurationError",
+    "InitialConfiguration",
+    "elbow_up_nominal",
+    "initial_guesses",
+    "solve_initial_configuration",
+]
+
+# Constraint tolerances handed to the IK solver (not the closed loop's success
+# tolerances), and the errors a solution may show when checked by forward kinematics
+# afterwards.
+IK_POSITION_TOLERANCE_M = 1e-6
+IK_ROTATION_TOLERANCE_RAD = 1e-5
 ACCEPTED_POSITION_ERROR_M = 1e-5
 ACCEPTED_ROTATION_ERROR_RAD = 1e-4
 # Cost weights on (q - q_nominal): the arm joints decide the posture; the wrist angles
 # follow from the orientation and matter less.
-NOMINAL_WEIGHTS = np.array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])
+NOMINAL_WEIGHTS = read_only_array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])
 # The elbow-up posture of UR's documentation, tool pointing down, at shoulder_pan 0
 # (where the arm reaches along the base's -x axis).
-ELBOW_UP_POSTURE = np.array([0.0, -1.2, 1.6, -1.97, -math.pi / 2, 0.0])
+ELBOW_UP_POSTURE = read_only_array([0.0, -1.2, 1.6, -1.97, -math.pi / 2, 0.0])
 # The UR5e's lateral offset of the wrist from the arm's plane (d4), metres.
 _WRIST_OFFSET_M = 0.1333
 
@@ -192,15 +210,15 @@ def solve_initial_configuration(
         frameB=frame_E,
         p_BQ=np.zeros(3),
         frameA=world,
-        p_AQ_lower=p_WE - POSITION_TOLERANCE_M,
-        p_AQ_upper=p_WE + POSITION_TOLERANCE_M,
+        p_AQ_lower=p_WE - IK_POSITION_TOLERANCE_M,
+        p_AQ_upper=p_WE + IK_POSITION_TOLERANCE_M,
     )
     ik.AddOrientationConstraint(
         frameAbar=world,
         R_AbarA=R_WE,
         frameBbar=frame_E,
         R_BbarB=RotationMatrix(),
-        theta_bound=ROTATION_TOLERANCE_RAD,
+        theta_bound=IK_ROTATION_TOLERANCE_RAD,
     )
     prog = ik.get_mutable_prog()
     q_variables = ik.q()

@@ -3,13 +3,18 @@
 This module finds the UR5e model shipped with drake-lfd (inside the installed package, or
 the repository's ``models/`` when run from a checkout), adds it to a MultibodyPlant, and
 gives batched forward kinematics ``X_WE = X_WB * FK(q) * X_tool0_E`` on a
-kinematics-only plant. It builds no simulation diagram (see the closed-loop modules).
+kinematics-only plant, also of whole demonstrations
+(:func:`dual_quaternions_from_demonstration`).
+
+A :class:`UR5eKinematics` owns its plant and one mutable context, so whoever needs
+kinematics creates one and keeps it (about a millisecond to build); there is no shared
+instance, and two callers never write each other's context.
+
+Not for: simulation diagrams (``diagrams/``), inverse kinematics (``initial_ik.py``),
+reading logs (:mod:`drake_lfd.io.demonstration_logs`).
 """
 
 from __future__ import annotations
-
-import functools
-from pathlib import Path
 
 import numpy as np
 from pydrake.math import RigidTransform
@@ -17,7 +22,23 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import FixedOffsetFrame, ModelInstanceIndex
 
+from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
 from drake_lfd.core.resources import models_directory
+
+__all__ = [
+    "UR5E_PACKAGE_NAME",
+    "UR5E_URL",
+    "UR5E_JOINT_NAMES",
+    "BASE_FRAME_NAME",
+    "TOOL0_FRAME_NAME",
+    "END_EFFECTOR_FRAME_NAME",
+    "NUM_JOINTS",
+    "make_parser",
+    "add_ur5e",
+    "UR5eKinematics",
+    "poses_from_demonstration",
+    "dual_quaternions_from_demonstration",
+]
 
 UR5E_PACKAGE_NAME = "drake_lfd_models"
 UR5E_URL = f"package://{UR5E_PACKAGE_NAME}/ur5e/ur5e.urdf"
@@ -32,9 +53,7 @@ UR5E_JOINT_NAMES = (
 BASE_FRAME_NAME = "base_link"
 TOOL0_FRAME_NAME = "tool0"
 END_EFFECTOR_FRAME_NAME = "E"
-NUM_JOINTS = 6
-
-
+NUM_JOINTS = len(UR5E_JOINT_NAMES)
 
 
 def make_parser(plant: MultibodyPlant) -> Parser:
@@ -143,24 +162,26 @@ class UR5eKinematics:
         return np.stack([self.X_Wtool0(q).GetAsMatrix4() for q in q_samples])
 
 
-@functools.lru_cache(maxsize=8)
-def _cached_kinematics(X_WB_key: bytes, X_tool0_E_key: bytes) -> UR5eKinematics:
-    def unkey(key):
-        return RigidTransform(np.frombuffer(key, dtype=float).reshape(4, 4))
-
-    return UR5eKinematics(X_WB=unkey(X_WB_key), X_tool0_E=unkey(X_tool0_E_key))
+# ----------------------------------------------------------------- demonstrations
 
 
-def shared_kinematics(
-    *, X_WB: RigidTransform | None = None, X_tool0_E: RigidTransform | None = None
-) -> UR5eKinematics:
-    """A cached :class:`UR5eKinematics` for these frames (building a plant costs ~10 ms).
+def poses_from_demonstration(demonstration, kinematics: UR5eKinematics) -> np.ndarray:
+    """End-effector poses of every sample of a demonstration by forward kinematics.
 
-    Not thread-safe: the instance owns one mutable context.
+    Parameters
+    ----------
+    demonstration : Demonstration
+    kinematics : UR5eKinematics
+        Carries ``X_WB`` and ``X_tool0_E``; a library uses ``X_WB = identity``.
+
+    Returns
+    -------
+    X_WE : array, shape (m, 4, 4)
+        Homogeneous matrices.
     """
-    X_WB = RigidTransform() if X_WB is None else X_WB
-    X_tool0_E = RigidTransform() if X_tool0_E is None else X_tool0_E
-    return _cached_kinematics(
-        np.ascontiguousarray(X_WB.GetAsMatrix4()).tobytes(),
-        np.ascontiguousarray(X_tool0_E.GetAsMatrix4()).tobytes(),
-    )
+    return kinematics.X_WE_batch(demonstration.joint_positions)
+
+
+def dual_quaternions_from_demonstration(demonstration, kinematics: UR5eKinematics) -> np.ndarray:
+    """End-effector poses of every sample as dual quaternions, shape (m, 8)."""
+    return dual_quaternion_from_matrices(poses_from_demonstration(demonstration, kinematics))

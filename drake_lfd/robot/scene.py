@@ -2,21 +2,23 @@
 
 Every box is registered through the MultibodyPlant on its world body, with a collision
 (proximity) and a visual (illustration) geometry: obstacles red, safety shells
-translucent purple (as in the paper's Fig. 8), the table grey. Geometry registered in
-SceneGraph from another source makes the plant throw on first contact (DRAKE_NOTES), so
-nothing here talks to SceneGraph directly except to filter collisions.
+translucent purple (as in the paper's Fig. 8), the table grey. Nothing here registers
+geometry in SceneGraph directly (the plant throws on first contact with geometry it did
+not register itself); SceneGraph is only asked to filter collisions.
 
 A safety shell is a keep-out volume, not a wall: robot-vs-shell pairs are excluded from
-contact with a ``CollisionFilterDeclaration``, so a shell never pushes the robot. The
-shell monitor measures those pairs with ``ComputeSignedDistancePairClosestPoints``,
-which ignores filters. Obstacles are real: the robot would touch them physically.
+contact with a ``CollisionFilterDeclaration``, so a shell never pushes the robot.
+:func:`min_signed_distances` measures those pairs with
+``ComputeSignedDistancePairClosestPoints``, which ignores filters; the shell monitor
+system and :class:`KinematicScene` both use it. Obstacles are real: the robot would
+touch them physically.
 
 :class:`KinematicScene` is the same scene on a kinematics-only plant, to check single
 configurations (the initial inverse kinematics, an independent recomputation of a run's
 clearances from its logged joint positions).
 
-Not for: building the simulation diagram (``station.py``), monitoring a run
-(``shell_monitor.py``), or reading task files (``tasks.py``, whose ``Box`` this uses).
+Not for: building the simulation diagram (``diagrams/station.py``), monitoring a run
+(``systems/shell_monitor.py``), or the boxes themselves (:class:`~drake_lfd.core.tasks.Box`).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from pydrake.geometry import (
     CollisionFilterDeclaration,
     GeometryId,
     GeometrySet,
+    QueryObject,
     SceneGraph,
 )
 from pydrake.math import RigidTransform
@@ -37,9 +40,22 @@ from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction
 from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import DiagramBuilder
 
+from drake_lfd.core.tasks import Box
 from drake_lfd.robot.kinematics import add_ur5e
-from drake_lfd.systems.shell_monitor import min_signed_distances
-from drake_lfd.io.task_files import Box
+
+__all__ = [
+    "OBSTACLE_RGBA",
+    "SAFETY_SHELL_RGBA",
+    "TABLE_RGBA",
+    "OBSTACLE",
+    "SAFETY_SHELL",
+    "SceneGeometry",
+    "table_under_robot",
+    "robot_geometry_names",
+    "add_scene",
+    "min_signed_distances",
+    "KinematicScene",
+]
 
 OBSTACLE_RGBA = np.array([0.85, 0.12, 0.10, 1.0])
 SAFETY_SHELL_RGBA = np.array([0.55, 0.25, 0.85, 0.25])
@@ -78,7 +94,8 @@ class SceneGeometry:
 
     @property
     def keep_out_geometry_ids(self) -> tuple:
-        """Obstacles then shells: what no robot geometry may penetrate (SPEC 9)."""
+        """Obstacles then shells: what no robot geometry may penetrate (docs/method.rst,
+        Closed loop and success)."""
         return tuple(self.obstacle_geometry_ids) + tuple(self.shell_geometry_ids)
 
     def describe(self, geometry_id: GeometryId) -> str:
@@ -138,7 +155,7 @@ def add_scene(
 
     Parameters
     ----------
-    obstacles, safety_shells : iterable of :class:`drake_lfd.io.task_files.Box`
+    obstacles, safety_shells : iterable of :class:`drake_lfd.core.tasks.Box`
         Axis-aligned boxes in W (``name``, ``centre`` (3,), ``size`` (3,) full edges).
     table : Box, optional
         A grey box the robot can rest on or touch (see :func:`table_under_robot`).
@@ -177,6 +194,18 @@ def add_scene(
         names=names,
         kinds=kinds,
     )
+
+
+def min_signed_distances(query_object: QueryObject, robot_geometry_ids, box_geometry_ids) -> np.ndarray:
+    """Signed distance of every (robot geometry, box) pair, shape (n_robot, n_boxes), m.
+
+    Filters are ignored, so shells filtered out of contact are measured too.
+    """
+    distances = np.empty((len(robot_geometry_ids), len(box_geometry_ids)))
+    for j, box_id in enumerate(box_geometry_ids):
+        for i, robot_id in enumerate(robot_geometry_ids):
+            distances[i, j] = query_object.ComputeSignedDistancePairClosestPoints(robot_id, box_id).distance
+    return distances
 
 
 class KinematicScene:

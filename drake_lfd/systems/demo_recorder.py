@@ -3,7 +3,7 @@
 A real kinesthetic demonstration is what the robot logs while a person guides it: the
 measured joint angles at the RTDE rate (500 Hz on an e-Series). :class:`DemoRecorder`
 is that logger in a Drake diagram: a periodic publish event samples its input and keeps
-the samples, which come out as a :class:`~drake_lfd.io.demonstration_logs.Demonstration` or as
+the samples, which come out as a :class:`~drake_lfd.core.demonstrations.Demonstration` or as
 the project's RTDE-style CSV (``timestamp, actual_q_0 .. actual_q_5``).
 
 Not for: simulating the guided arm (``kinesthetic.py``) or reading logs
@@ -13,12 +13,12 @@ Not for: simulating the guided arm (``kinesthetic.py``) or reading logs
 from __future__ import annotations
 
 import numpy as np
+from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
-from drake_lfd.io.demonstration_logs import Demonstration, write_rtde_csv
+from drake_lfd.core.demonstrations import RTDE_RATE_HZ, Demonstration
+from drake_lfd.io.demonstration_logs import write_rtde_csv
 
-# The UR e-Series RTDE interface streams at up to 500 Hz.
-RTDE_RATE_HZ = 500.0
 # Timestamps are rounded to this many decimals (1 us): sample times are multiples of
 # the period, and rounding keeps the CSV free of 0.30000000000000004-style digits.
 _TIMESTAMP_DECIMALS = 6
@@ -32,8 +32,14 @@ class DemoRecorder(LeafSystem):
         name: DemoRecorder
         input_ports:
         - measured_position
+        output_ports:
+        - demonstration
 
     The input ``measured_position`` is a vector of ``num_joints`` joint angles (rad).
+    The output ``demonstration`` is None until simulation time ``finish_time_s``, then
+    the recorded :class:`~drake_lfd.core.demonstrations.Demonstration` (named
+    ``demo_name``), so a :class:`~drake_lfd.systems.feature_library.FeatureLibrarySystem`
+    can take it in the same Diagram.
     A periodic publish event at ``rate_hz`` (first sample at ``t = 0``) appends
     ``(t, q)``; nothing is stored in the context, so the recorder holds the samples of
     the last simulation it was part of (call :meth:`clear` before reusing it).
@@ -44,9 +50,14 @@ class DemoRecorder(LeafSystem):
         Size of the input, 6 for the UR5e.
     rate_hz : float
         Sampling rate, > 0; the RTDE rate (500 Hz) by default.
+    finish_time_s : float, optional
+        When the demonstration is complete (None: never put out).
+    demo_name, description : str
+        Name and description of the demonstration put out.
     """
 
-    def __init__(self, *, num_joints: int = 6, rate_hz: float = RTDE_RATE_HZ):
+    def __init__(self, *, num_joints: int = 6, rate_hz: float = RTDE_RATE_HZ, finish_time_s: float | None = None,
+                 demo_name: str = "demo", description: str = ""):
         super().__init__()
         if not rate_hz > 0.0 or not np.isfinite(rate_hz):
             raise ValueError(f"rate_hz must be a finite number > 0, got {rate_hz!r}")
@@ -56,11 +67,20 @@ class DemoRecorder(LeafSystem):
         self.DeclarePeriodicPublishEvent(period_sec=self._period_s, offset_sec=0.0, publish=self._record)
         self._timestamps = []
         self._joint_positions = []
+        self._finish_time_s = None if finish_time_s is None else float(finish_time_s)
+        self._demo_name = demo_name
+        self._description = description
+        # The samples live outside the Context, so the output depends on time only.
+        self.demonstration_output_port = self.DeclareAbstractOutputPort(
+            "demonstration", lambda: AbstractValue.Make(object()), self._calc_demonstration,
+            prerequisites_of_calc={self.time_ticket()})
 
     @staticmethod
-    def AddToBuilder(builder, measured_position_port, *, num_joints=6, rate_hz=RTDE_RATE_HZ, name="demo_recorder"):
-        """Adds a recorder named ``name`` fed by ``measured_position_port``; returns it."""
-        recorder = builder.AddSystem(DemoRecorder(num_joints=num_joints, rate_hz=rate_hz))
+    def AddToBuilder(builder, measured_position_port, *, num_joints=6, rate_hz=RTDE_RATE_HZ, name="demo_recorder",
+                     **kwargs):
+        """Adds a recorder named ``name`` fed by ``measured_position_port``; returns it
+        (``kwargs``: ``finish_time_s``, ``demo_name``, ``description``)."""
+        recorder = builder.AddSystem(DemoRecorder(num_joints=num_joints, rate_hz=rate_hz, **kwargs))
         recorder.set_name(name)
         builder.Connect(measured_position_port, recorder.get_input_port())
         return recorder
@@ -78,6 +98,11 @@ class DemoRecorder(LeafSystem):
             return
         self._timestamps.append(t)
         self._joint_positions.append(np.array(self._measured_position_port.Eval(context), dtype=float))
+
+    def _calc_demonstration(self, context, output):
+        done = (self._finish_time_s is not None and context.get_time() >= self._finish_time_s - 1e-9
+                and self.num_samples >= 2)
+        output.set_value(self.demonstration(self._demo_name, self._description) if done else None)
 
     def clear(self):
         """Forgets every sample."""
@@ -97,7 +122,7 @@ class DemoRecorder(LeafSystem):
         return np.array(self._joint_positions, dtype=float).reshape(-1, self._num_joints)
 
     def demonstration(self, name: str = "demo", description: str = "") -> Demonstration:
-        """The samples so far as a :class:`~drake_lfd.io.demonstration_logs.Demonstration`."""
+        """The samples so far as a :class:`~drake_lfd.core.demonstrations.Demonstration`."""
         return Demonstration(
             name=name, timestamps=self.timestamps(), joint_positions=self.joint_positions(), description=description
         )

@@ -1,6 +1,6 @@
 """Differential inverse kinematics: desired end-effector motion -> joint position command.
 
-The SE(3) plan reaches the UR5e through this controller (SPEC 8). Every ``time_step`` it
+The SE(3) plan reaches the UR5e through this controller (docs/method.rst, Closed loop and success). Every ``time_step`` it
 computes a joint velocity ``v`` for the commanded end-effector velocity
 
     V = V_WE_desired + K * (X_WE_desired [-] X_WE(q_measured))     (feed-forward + feedback)
@@ -30,7 +30,7 @@ Choices, measured on a 10 s, four-configuration plan (``benchmarks/bench_closed_
 - The Jacobian and the pose error are evaluated at the *measured* joint positions, so
   the feedback sees the real end-effector pose; the command integrates from the
   previous *command*. Restarting each step from the measured positions loses the servo
-  lag every step (DRAKE_NOTES); feeding back the command's own pose instead of the
+  lag every step (the command stays one small step ahead of the measurement); feeding back the command's own pose instead of the
   measured one leaves the servo lag uncorrected (path rms 0.6 mm against 0.2 mm).
 - The feedback gain K = 20 /s: K = 0 (pure feed-forward) ends 0.9 mm off at the
   critical configurations, K = 5-20 brings that to 0.13-0.03 mm; K = 40 starts to ring
@@ -42,7 +42,7 @@ Choices, measured on a 10 s, four-configuration plan (``benchmarks/bench_closed_
   applied over. Updating at the sampling instants themselves delays every command by
   a full period (the drive still holds the old one), and halfway leaves half of it:
   path rms 0.84 and 0.74 mm against 0.20 mm with a 5 ms plant step.
-- A 10 ms period (DRAKE_NOTES' best): 5 ms and 2 ms track somewhat better (path max
+- A 10 ms period: 5 ms and 2 ms track somewhat better (path max
   0.8 and 0.6 mm against 1.1 mm) but cost proportionally more Python calls.
 
 Not for: the drive (``station.py``), the plan (``plan_trajectory_source.py``) or the
@@ -124,7 +124,7 @@ class DifferentialIKController(LeafSystem):
     frame_E : Frame
         The controlled end-effector frame, of ``plant``.
     time_step : float
-        Update period, s (10 ms: DRAKE_NOTES measured it best; the station's
+        Update period, s (10 ms, see the module docstring; the station's
         ``command_period`` must match).
     method : {"drake", "pseudo_inverse"}
     position_gain : float

@@ -1,12 +1,13 @@
-"""The timed plan as a Drake source of the desired end-effector pose and velocity.
+"""The scheduled plan as a Drake source of the desired end-effector pose and velocity.
 
-``TrajectorySource`` does not accept a ``PiecewisePose`` (DRAKE_NOTES), so this small
-LeafSystem evaluates one: ``X_WE_desired`` is ``PiecewisePose.GetPose(t)`` and
-``V_WE_desired`` its derivative (``MakeDerivative()``). Before ``start_time_s`` the
-source holds the plan's first pose, after the plan's end its last pose, both at zero
-velocity.
+``TrajectorySource`` does not accept a ``PiecewisePose`` (it needs a vector-valued
+trajectory), so this small LeafSystem evaluates the one a
+:class:`~drake_lfd.planning.replanning.ScheduledPlan` carries: ``X_WE_desired`` is its pose
+at the current time and ``V_WE_desired`` its derivative. The plan arrives on an input
+port, so a planner system upstream may replace it during a run. Before the plan starts
+the source holds its first pose, after its end its last pose, both at zero velocity.
 
-Not for: timing a plan (``timing.py``) or tracking it (``differential_ik.py``).
+Not for: planning or timing (``planning/``) or tracking the pose (``differential_ik.py``).
 """
 
 from __future__ import annotations
@@ -14,68 +15,59 @@ from __future__ import annotations
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
-from pydrake.systems.framework import LeafSystem
+from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 
-from drake_lfd.core.timing import TimedPlan
+from drake_lfd.planning.replanning import ScheduledPlan
+
+__all__ = ["PlanTrajectorySource"]
 
 
 class PlanTrajectorySource(LeafSystem):
-    """Desired pose and spatial velocity of E from a :class:`~drake_lfd.core.timing.TimedPlan`.
+    """Desired pose and spatial velocity of E from the plan on its input.
 
     .. pydrake_system::
 
         name: PlanTrajectorySource
+        input_ports:
+        - plan
         output_ports:
         - X_WE_desired
         - V_WE_desired
 
-    ``X_WE_desired`` is an abstract ``RigidTransform``; ``V_WE_desired`` is the spatial
-    velocity of E in W, shape (6,), ``[omega_WE, v_WE]`` (Drake's order: angular first).
-
-    Parameters
-    ----------
-    plan : TimedPlan
-        Poses at times starting from 0.
-    start_time_s : float
-        Simulation time at which the plan's time 0 falls (for example after a settling
-        period).
+    ``plan`` is an abstract :class:`~drake_lfd.planning.replanning.ScheduledPlan` (a
+    demonstration request, which has no motion, holds the identity pose at zero
+    velocity). ``X_WE_desired`` is an abstract ``RigidTransform``; ``V_WE_desired`` is
+    the spatial velocity of E in W, shape (6,), ``[omega_WE, v_WE]`` (angular first).
     """
 
-    def __init__(self, *, plan: TimedPlan, start_time_s: float = 0.0):
+    def __init__(self):
         super().__init__()
-        self._plan = plan
-        self._start_time_s = float(start_time_s)
-        self._duration_s = plan.duration
-        self._trajectory = plan.to_piecewise_pose()
-        self._velocity = self._trajectory.MakeDerivative()
+        self.plan_input_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(object()))
         self.X_WE_desired_output_port = self.DeclareAbstractOutputPort(
-            "X_WE_desired", lambda: AbstractValue.Make(RigidTransform()), self._calc_pose
+            "X_WE_desired", lambda: AbstractValue.Make(RigidTransform()), self._calc_pose,
+            prerequisites_of_calc={self.time_ticket(), self.plan_input_port.ticket()},
         )
-        self.V_WE_desired_output_port = self.DeclareVectorOutputPort("V_WE_desired", 6, self._calc_velocity)
+        self.V_WE_desired_output_port = self.DeclareVectorOutputPort(
+            "V_WE_desired", 6, self._calc_velocity,
+            prerequisites_of_calc={self.time_ticket(), self.plan_input_port.ticket()},
+        )
 
-    @property
-    def plan(self) -> TimedPlan:
-        return self._plan
+    @staticmethod
+    def AddToBuilder(*, builder: DiagramBuilder, plan_output_port: OutputPort,
+                     name: str = "plan_trajectory_source") -> "PlanTrajectorySource":
+        """Adds a source named ``name`` fed by ``plan_output_port``; returns it."""
+        source = builder.AddNamedSystem(name, PlanTrajectorySource())
+        builder.Connect(plan_output_port, source.plan_input_port)
+        return source
 
-    @property
-    def start_time_s(self) -> float:
-        return self._start_time_s
-
-    @property
-    def end_time_s(self) -> float:
-        """Simulation time at which the plan ends."""
-        return self._start_time_s + self._duration_s
-
-    def plan_time(self, t: float) -> float:
-        """The plan's time at simulation time ``t``, clamped to ``[0, duration]``."""
-        return min(max(t - self._start_time_s, 0.0), self._duration_s)
+    def _scheduled(self, context) -> ScheduledPlan | None:
+        plan = self.plan_input_port.Eval(context)
+        return plan if isinstance(plan, ScheduledPlan) and plan.planned else None
 
     def _calc_pose(self, context, output):
-        output.set_value(self._trajectory.GetPose(self.plan_time(context.get_time())))
+        plan = self._scheduled(context)
+        output.set_value(RigidTransform() if plan is None else plan.X_WE_desired(context.get_time()))
 
     def _calc_velocity(self, context, output):
-        tau = context.get_time() - self._start_time_s
-        if tau <= 0.0 or tau >= self._duration_s:
-            output.SetFromVector(np.zeros(6))
-        else:
-            output.SetFromVector(self._velocity.value(tau)[:, 0])
+        plan = self._scheduled(context)
+        output.SetFromVector(np.zeros(6) if plan is None else plan.V_WE_desired(context.get_time()))

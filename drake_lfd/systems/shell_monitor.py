@@ -4,7 +4,7 @@ Safety shells are filtered out of contact (``scene.py``), so SceneGraph's all-pa
 queries cannot see them. The monitor asks for each (robot geometry, box) pair with
 ``QueryObject.ComputeSignedDistancePairClosestPoints(id_A, id_B)``, which ignores
 collision filters, at a fixed rate (100 Hz by default: about 7 us per pair, so a 1 kHz
-monitor would add ~40 % to a run; DRAKE_NOTES). Its state keeps, for every box, the
+monitor would add ~40 % to a run, as measured). Its state keeps, for every box, the
 minimum signed distance seen so far, which robot geometry achieved it and when. It
 samples the same states as a periodic publisher such as the joint-state logger (see
 ``ShellMonitor``), so the minimum can be recomputed exactly from a run's log. A
@@ -57,18 +57,6 @@ class BoxClearance:
     def describe(self) -> str:
         """``safety shell 'shell_1'`` (or just the name when the kind is unknown)."""
         return f"{self.kind} '{self.box}'" if self.kind else f"'{self.box}'"
-
-
-def min_signed_distances(query_object: QueryObject, robot_geometry_ids, box_geometry_ids) -> np.ndarray:
-    """Signed distance of every (robot geometry, box) pair, shape (n_robot, n_boxes), m.
-
-    Filters are ignored, so shells filtered out of contact are measured too.
-    """
-    distances = np.empty((len(robot_geometry_ids), len(box_geometry_ids)))
-    for j, box_id in enumerate(box_geometry_ids):
-        for i, robot_id in enumerate(robot_geometry_ids):
-            distances[i, j] = query_object.ComputeSignedDistancePairClosestPoints(robot_id, box_id).distance
-    return distances
 
 
 class ShellMonitor(LeafSystem):

@@ -1,0 +1,326 @@
+"""The task data model: critical configurations, boxes, path constraints and trials (Eq. 10).
+
+A task ``TK`` is a sequence of critical configurations ``con_i = <P_i, theta_i>`` the
+end-effector frame E must pass through, numbered from 1 as in the paper. A
+:class:`Task` states each con with its ranges: a position coordinate is fixed, drawn
+from a range per trial, or shared with other coordinates through a named variable; an
+orientation angle ``euler_zyx = [yaw, pitch, roll]`` (``R = Rz(yaw) Ry(pitch) Rx(roll)``,
+Eq. 17; :func:`rigid_transform_from_euler_zyx`) is fixed or bounded, a bounded one being
+a freedom the planner chooses among :func:`angle_candidates`. :func:`draw_trial` draws a
+:class:`ConcreteTask` (every position fixed, bounded angles still free) from a task and a
+seed; :meth:`ConcreteTask.from_fixed` builds one directly (random training tasks).
+Obstacles and keep-out safety shells are axis-aligned :class:`Box` es in W.
+
+The meaning of tasks is in docs/method.rst (Tasks); the file format in
+docs/task_files.rst.
+
+Not for: reading task files (:mod:`drake_lfd.io.task_files` checks the YAML into these
+types), planning (the planners), simulating the scene (``robot/scene.py``, the
+closed-loop diagram).
+"""
+
+import dataclasses
+import itertools
+import math
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw
+
+from drake_lfd.core.errors import InputError
+from drake_lfd.core.read_only_arrays import read_only_array
+
+__all__ = [
+    "DEFAULT_ANGLE_GRID_DEG",
+    "MIN_CRITICAL_CONFIGURATIONS",
+    "PATH_CONSTRAINT_KINDS",
+    "Box",
+    "PathConstraint",
+    "CriticalConfiguration",
+    "Task",
+    "ConcreteCriticalConfiguration",
+    "ConcreteTask",
+    "rigid_transform_from_euler_zyx",
+    "angle_grid",
+    "angle_candidates",
+    "draw_trial",
+]
+
+DEFAULT_ANGLE_GRID_DEG = 15.0
+MIN_CRITICAL_CONFIGURATIONS = 2
+PATH_CONSTRAINT_KINDS = ("orientation",)
+
+
+def rigid_transform_from_euler_zyx(p, euler_zyx):
+    """The ``RigidTransform`` of a position and [yaw, pitch, roll], ``R = Rz Ry Rx``
+    (docs/method.rst, Conventions)."""
+    yaw, pitch, roll = (float(v) for v in euler_zyx)
+    return RigidTransform(RollPitchYaw(roll, pitch, yaw), np.asarray(p, dtype=float))
+
+
+# ------------------------------------------------------------------------- task types
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Box:
+    """An axis-aligned box: ``centre`` (3,) and full edge lengths ``size`` (3,), metres."""
+
+    name: str
+    centre: np.ndarray
+    size: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "centre", read_only_array(self.centre, (3,)))
+        object.__setattr__(self, "size", read_only_array(self.size, (3,)))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class PathConstraint:
+    """Keep the tool orientation within ``tolerance_rad`` of ``euler_zyx`` (3,) from
+    ``con_from`` to ``con_to`` (1-based, inclusive)."""
+
+    kind: str
+    con_from: int
+    con_to: int
+    euler_zyx: np.ndarray
+    tolerance_rad: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "euler_zyx", read_only_array(self.euler_zyx, (3,)))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CriticalConfiguration:
+    """``con_i`` as the task file states it, with its ranges.
+
+    Attributes
+    ----------
+    p_lower, p_upper : array, shape (3,)
+        Position bounds (equal for a fixed coordinate), metres.
+    p_variables : tuple of 3 (str or None)
+        The variable each coordinate names, or None.
+    euler_zyx_lower, euler_zyx_upper : array, shape (3,)
+        [yaw, pitch, roll] bounds (equal for a fixed angle), radians.
+    """
+
+    p_lower: np.ndarray
+    p_upper: np.ndarray
+    p_variables: tuple
+    euler_zyx_lower: np.ndarray
+    euler_zyx_upper: np.ndarray
+
+    def __post_init__(self):
+        for name in ("p_lower", "p_upper", "euler_zyx_lower", "euler_zyx_upper"):
+            object.__setattr__(self, name, read_only_array(getattr(self, name), (3,)))
+        object.__setattr__(self, "p_variables", tuple(self.p_variables))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Task:
+    """A checked task (a task file as :func:`~drake_lfd.io.task_files.load_task` returns it);
+    :func:`draw_trial` makes concrete trials of it."""
+
+    name: str
+    critical_configurations: tuple
+    X_WB: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    X_tool0_E: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
+    variables: dict = dataclasses.field(default_factory=dict)  # name -> (lower, upper)
+    obstacles: tuple = ()
+    safety_shells: tuple = ()
+    path_constraints: tuple = ()
+    description: str = ""
+    file: str | None = None
+
+    def __len__(self):
+        return len(self.critical_configurations)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ConcreteCriticalConfiguration:
+    """``con_i`` of one trial: a fixed position, angles fixed or bounded.
+
+    Attributes
+    ----------
+    p : array, shape (3,)
+        Position in W, metres.
+    euler_zyx_lower, euler_zyx_upper : array, shape (3,)
+        [yaw, pitch, roll] bounds in radians; equal where the angle is fixed.
+    angle_grid_deg : float
+        Grid step for the bounded angles (:func:`angle_candidates`).
+    """
+
+    p: np.ndarray
+    euler_zyx_lower: np.ndarray
+    euler_zyx_upper: np.ndarray
+    angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
+
+    def __post_init__(self):
+        for name in ("p", "euler_zyx_lower", "euler_zyx_upper"):
+            object.__setattr__(self, name, read_only_array(getattr(self, name), (3,)))
+        if np.any(self.euler_zyx_lower > self.euler_zyx_upper):
+            raise ValueError("euler_zyx_lower must be <= euler_zyx_upper")
+        if not self.angle_grid_deg > 0.0:
+            raise ValueError(f"angle_grid_deg must be > 0, got {self.angle_grid_deg}")
+
+    @classmethod
+    def fixed(cls, p, euler_zyx):
+        """A configuration with every angle fixed."""
+        return cls(p=p, euler_zyx_lower=euler_zyx, euler_zyx_upper=euler_zyx)
+
+    @property
+    def is_orientation_fixed(self) -> bool:
+        return bool(np.all(self.euler_zyx_lower == self.euler_zyx_upper))
+
+    @property
+    def euler_zyx(self) -> np.ndarray:
+        """The fixed [yaw, pitch, roll], shape (3,); ValueError if any angle is bounded."""
+        if not self.is_orientation_fixed:
+            raise ValueError("this configuration has bounded angles; choose one of angle_candidates()")
+        return self.euler_zyx_lower
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ConcreteTask:
+    """One trial of a task: every position drawn, bounded angles still free."""
+
+    name: str
+    critical_configurations: tuple
+    X_WB: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    X_tool0_E: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+    obstacles: tuple = ()
+    safety_shells: tuple = ()
+    path_constraints: tuple = ()
+    seed: int | None = None
+    variable_values: dict = dataclasses.field(default_factory=dict)  # name -> drawn value
+    file: str | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "critical_configurations", tuple(self.critical_configurations))
+
+    def __len__(self):
+        return len(self.critical_configurations)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Positions of con_1 .. con_n, shape (n, 3)."""
+        return np.array([con.p for con in self.critical_configurations])
+
+    @classmethod
+    def from_fixed(cls, name, positions, euler_zyx, **kwargs):
+        """A task with every angle fixed (for example a random training task).
+
+        Parameters
+        ----------
+        name : str
+        positions : array-like, shape (n, 3)
+        euler_zyx : array-like, shape (n, 3)
+            [yaw, pitch, roll] per configuration, radians.
+        **kwargs
+            Other :class:`ConcreteTask` fields (``X_WB``, ``obstacles``, ...).
+        """
+        positions = np.asarray(positions, dtype=float)
+        euler_zyx = np.asarray(euler_zyx, dtype=float)
+        return cls(
+            name=name,
+            critical_configurations=tuple(
+                ConcreteCriticalConfiguration.fixed(p, e) for p, e in zip(positions, euler_zyx)
+            ),
+            **kwargs,
+        )
+
+
+# ------------------------------------------------------------------------------ angles
+
+
+def angle_grid(lower, upper, step_rad):
+    """Samples of a bounded angle: ``lower`` to ``upper``, both included, evenly spaced
+    at most ``step_rad`` apart. A fixed angle (``lower == upper``) gives one sample.
+
+    Returns
+    -------
+    angles : array, shape (k,)
+    """
+    span = float(upper) - float(lower)
+    if span <= 0.0:
+        return np.array([float(lower)])
+    count = int(math.ceil(span / step_rad - 1e-9)) + 1
+    return np.linspace(float(lower), float(upper), count)
+
+
+def angle_candidates(con):
+    """Every [yaw, pitch, roll] the planner may choose for ``con`` (docs/method.rst, Tasks).
+
+    Fixed angles keep their value; each bounded one runs over :func:`angle_grid` with
+    ``con.angle_grid_deg``; the result is their Cartesian product (yaw slowest).
+    A full turn such as ``[-pi, pi]`` includes both ends (the same rotation).
+
+    Parameters
+    ----------
+    con : ConcreteCriticalConfiguration
+
+    Returns
+    -------
+    candidates : array, shape (k, 3)
+        Rows are (yaw, pitch, roll) in radians; iterate to get triples.
+    """
+    step = math.radians(con.angle_grid_deg)
+    axes = [angle_grid(lo, hi, step) for lo, hi in zip(con.euler_zyx_lower, con.euler_zyx_upper)]
+    return np.array(list(itertools.product(*axes)), dtype=float).reshape(-1, 3)
+
+
+# ------------------------------------------------------------------------------ trials
+
+
+def draw_trial(task, seed):
+    """Draws one concrete trial of a task (the paper runs 20 per task).
+
+    Variables are drawn first, uniformly in their ranges, in sorted name order; then
+    each inline position range, con by con, x before y before z. Fixed values draw
+    nothing. Bounded angles stay bounded (the planner chooses them).
+
+    Parameters
+    ----------
+    task : Task
+    seed : int
+        Non-negative; the same seed gives the same trial.
+
+    Returns
+    -------
+    trial : ConcreteTask
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"expected a non-negative integer, got {seed!r}", field="seed")
+    rng = np.random.default_rng(int(seed))
+    values = {name: float(rng.uniform(*task.variables[name])) for name in sorted(task.variables)}
+    cons = []
+    for con in task.critical_configurations:
+        p = np.empty(3)
+        for axis in range(3):
+            variable = con.p_variables[axis]
+            lower, upper = con.p_lower[axis], con.p_upper[axis]
+            if variable is not None:
+                p[axis] = values[variable]
+            elif lower == upper:
+                p[axis] = lower
+            else:
+                p[axis] = rng.uniform(lower, upper)
+        cons.append(
+            ConcreteCriticalConfiguration(
+                p=p,
+                euler_zyx_lower=con.euler_zyx_lower,
+                euler_zyx_upper=con.euler_zyx_upper,
+                angle_grid_deg=task.angle_grid_deg,
+            )
+        )
+    return ConcreteTask(
+        name=task.name,
+        critical_configurations=tuple(cons),
+        X_WB=task.X_WB,
+        X_tool0_E=task.X_tool0_E,
+        obstacles=task.obstacles,
+        safety_shells=task.safety_shells,
+        path_constraints=task.path_constraints,
+        seed=int(seed),
+        variable_values=values,
+        file=task.file,
+    )

@@ -1,0 +1,212 @@
+"""Typed configuration of the simulated work cell and the closed loop.
+
+Every gain, step and period of the station, the controller, the shell monitor, the
+joint logger and the planner system lives in one of these dataclasses, with the measured
+defaults, so a scenario can change them without code. A task file may carry them in an
+optional ``simulation:`` block, loaded with Drake's ``yaml_load_typed`` (unknown keys
+are errors)::
+
+    simulation:
+      station: {time_step: 0.002}
+      controller: {method: pseudo_inverse, position_gain: 10.0}
+      settle_s: 0.3
+
+Not for: building anything (``station.py``, ``pipeline.py``) or the task itself.
+"""
+
+# No "from __future__ import annotations": yaml_load_typed needs the real field types.
+
+import dataclasses
+import math
+from pathlib import Path
+
+from pydrake.common.yaml import yaml_load_typed
+
+from drake_lfd.core.errors import InputError
+
+__all__ = [
+    "DriveConfig",
+    "StationConfig",
+    "ControllerConfig",
+    "MonitorConfig",
+    "PlannerSystemConfig",
+    "PipelineConfig",
+    "STATION_TIME_STEP_S",
+    "CLOSED_LOOP_TIME_STEP_S",
+    "load_pipeline_config",
+    "pipeline_config_from_text",
+]
+
+# The plant step of a bare station (fine enough for any use) and of a closed-loop run
+# (5 ms: tracks as well as 1 ms, 0.086 mm against 0.032 mm at the critical
+# configurations, at about 3x the speed; benchmarks/bench_closed_loop.py).
+STATION_TIME_STEP_S = 1e-3
+CLOSED_LOOP_TIME_STEP_S = 5e-3
+
+
+@dataclasses.dataclass
+class DriveConfig:
+    """The UR5e's joint servos: PD gains, rotor inertia and gear ratio, per joint.
+
+    The gains are omega^2 I and 2 zeta omega I (zeta = 1) for a position bandwidth of
+    about 40 rad/s (shoulder with the arm outstretched, I = 3 kg m^2), 50 rad/s (elbow,
+    I = 1.2) and 55 rad/s (wrists, I = 0.1 with the reflected rotor inertia). With
+    velocity feed-forward, a servo's tracking error is about I qddot / Kp: under 1 mrad
+    for a 0.25 m/s tool motion. UR does not publish rotor inertias; these are the order
+    of magnitude of frameless servo motors of the joint sizes, reflected through the
+    101:1 strain-wave gear (x 101^2).
+    """
+
+    proportional_gains: list[float] = dataclasses.field(
+        default_factory=lambda: [4800.0, 4800.0, 3000.0, 300.0, 300.0, 300.0])
+    derivative_gains: list[float] = dataclasses.field(
+        default_factory=lambda: [240.0, 240.0, 120.0, 11.0, 11.0, 11.0])
+    rotor_inertia_kg_m2: list[float] = dataclasses.field(
+        default_factory=lambda: [3.5e-5, 3.5e-5, 3.5e-5, 1.0e-5, 1.0e-5, 1.0e-5])
+    gear_ratio: float = 101.0
+
+
+@dataclasses.dataclass
+class StationConfig:
+    """The station: plant step, drive, command sampling, visualisation.
+
+    Attributes
+    ----------
+    time_step : float
+        The discrete plant's step, s.
+    command_period : float
+        Period at which the drive samples the position command, s; match the rate of
+        whatever produces it (the differential-IK period).
+    drive : DriveConfig
+    visualizer_publish_period : float
+        Meshcat frame period, s (when a Meshcat is given).
+    model_name : str
+        Robot model instance name and prefix of the exported ports.
+    """
+
+    time_step: float = STATION_TIME_STEP_S
+    command_period: float = 0.01
+    drive: DriveConfig = dataclasses.field(default_factory=DriveConfig)
+    visualizer_publish_period: float = 1.0 / 32.0
+    model_name: str = "ur5e"
+
+
+@dataclasses.dataclass
+class ControllerConfig:
+    """The differential-IK controller (see :mod:`drake_lfd.systems.differential_ik`).
+
+    Attributes
+    ----------
+    method : str
+        ``"drake"`` (Drake's differential IK with joint limits) or ``"pseudo_inverse"``
+        (the paper's Eq. 35-38).
+    time_step : float
+        Update period, s; also the drive's command period in a closed loop.
+    position_gain : float
+        Feedback gain on the pose error, 1/s.
+    velocity_limit_fraction : float
+        Fraction of the UR5e's joint speed limits the controller may command.
+    """
+
+    method: str = "drake"
+    time_step: float = 0.01
+    position_gain: float = 20.0
+    velocity_limit_fraction: float = 0.7
+
+
+@dataclasses.dataclass
+class MonitorConfig:
+    """The shell monitor: sampling period (s) and whether a penetration ends the run."""
+
+    period: float = 0.01
+    stop_on_penetration: bool = False
+
+
+@dataclasses.dataclass
+class PlannerSystemConfig:
+    """The planner system: how often it looks for a changed task or library (s)."""
+
+    check_period: float = 0.05
+
+
+@dataclasses.dataclass
+class PipelineConfig:
+    """Everything a closed-loop run is configured by.
+
+    Attributes
+    ----------
+    station : StationConfig
+        Its ``time_step`` defaults to the closed-loop step (5 ms) here.
+    controller : ControllerConfig
+    monitor : MonitorConfig
+    planner : PlannerSystemConfig
+    log_period : float
+        Joint-state logger period, s.
+    settle_s : float
+        Time at rest before the plan starts, s.
+    """
+
+    station: StationConfig = dataclasses.field(
+        default_factory=lambda: StationConfig(time_step=CLOSED_LOOP_TIME_STEP_S))
+    controller: ControllerConfig = dataclasses.field(default_factory=ControllerConfig)
+    monitor: MonitorConfig = dataclasses.field(default_factory=MonitorConfig)
+    planner: PlannerSystemConfig = dataclasses.field(default_factory=PlannerSystemConfig)
+    log_period: float = 0.01
+    settle_s: float = 0.5
+
+    def checked(self, *, file: str | None = None) -> "PipelineConfig":
+        """Itself after range checks (positive periods, six gains, known method), with
+        the drive's command period tied to the controller's; raises InputError."""
+        def positive(value, field):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise InputError(f"must be a finite number > 0, got {value!r}", file=file,
+                                 field=f"simulation.{field}")
+
+        positive(self.station.time_step, "station.time_step")
+        positive(self.controller.time_step, "controller.time_step")
+        positive(self.monitor.period, "monitor.period")
+        positive(self.planner.check_period, "planner.check_period")
+        positive(self.log_period, "log_period")
+        positive(self.station.visualizer_publish_period, "station.visualizer_publish_period")
+        positive(self.station.drive.gear_ratio, "station.drive.gear_ratio")
+        if not (math.isfinite(self.settle_s) and self.settle_s >= 0):
+            raise InputError(f"must be a finite number >= 0, got {self.settle_s!r}", file=file,
+                             field="simulation.settle_s")
+        if self.controller.method not in ("drake", "pseudo_inverse"):
+            raise InputError(f"must be 'drake' or 'pseudo_inverse', got {self.controller.method!r}",
+                             file=file, field="simulation.controller.method")
+        if not 0 < self.controller.velocity_limit_fraction <= 1:
+            raise InputError("must be in (0, 1]", file=file, field="simulation.controller.velocity_limit_fraction")
+        drive = self.station.drive
+        for name in ("proportional_gains", "derivative_gains", "rotor_inertia_kg_m2"):
+            values = getattr(drive, name)
+            if len(values) != 6 or not all(math.isfinite(v) and v >= 0 for v in values):
+                raise InputError("must be six finite numbers >= 0", file=file,
+                                 field=f"simulation.station.drive.{name}")
+        return dataclasses.replace(
+            self, station=dataclasses.replace(self.station, command_period=self.controller.time_step))
+
+
+def pipeline_config_from_text(text: str, *, file: str | None = None) -> PipelineConfig:
+    """The ``simulation:`` block of a task file's text (defaults where it is absent)."""
+    try:
+        config = yaml_load_typed(schema=PipelineConfig, data=text, child_name="simulation",
+                                 defaults=PipelineConfig())
+    except KeyError:  # no simulation block
+        return PipelineConfig().checked(file=file)
+    except (RuntimeError, ValueError, TypeError, AttributeError) as error:
+        message = (str(error).strip().splitlines() or [type(error).__name__])[0]
+        raise InputError(f"bad simulation block: {message}", file=file, field="simulation") from None
+    return config.checked(file=file)
+
+
+def load_pipeline_config(path: str | Path | None) -> PipelineConfig:
+    """The ``simulation:`` block of the task file at ``path``; defaults for None or a
+    file without one."""
+    if path is None:
+        return PipelineConfig().checked()
+    try:
+        text = Path(path).read_text()
+    except OSError as error:
+        raise InputError(f"cannot read ({error.strerror})", file=str(path)) from None
+    return pipeline_config_from_text(text, file=str(path))

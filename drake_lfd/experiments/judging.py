@@ -1,0 +1,136 @@
+"""Whether a closed-loop run succeeded, and if not, why (the success criteria).
+
+A run succeeds when every critical configuration is reached within 5 mm and 2 deg when
+it is due, the task's path constraints hold along the logged motion, no robot geometry
+penetrates an obstacle or a safety shell, and the joints stay inside their position and
+speed limits (docs/method.rst, Closed loop and success). :func:`judge_run` returns the
+verdict with one line per failed criterion.
+
+Not for: running the simulation (``diagrams/closed_loop.py``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+from pydrake.math import RotationMatrix
+
+from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
+from drake_lfd.diagrams.closed_loop import ClosedLoopResult
+from drake_lfd.robot.kinematics import UR5E_JOINT_NAMES, UR5eKinematics
+
+__all__ = ["RunJudgement", "judge_run", "SUCCESS_POSITION_TOLERANCE_M", "SUCCESS_ROTATION_TOLERANCE_RAD"]
+
+SUCCESS_POSITION_TOLERANCE_M = 0.005
+SUCCESS_ROTATION_TOLERANCE_RAD = math.radians(2.0)
+
+
+@dataclass(frozen=True)
+class RunJudgement:
+    """The verdict: ``success`` and one line per failed criterion."""
+
+    success: bool
+    failures: list = field(default_factory=list)
+
+
+def judge_run(
+    result: ClosedLoopResult,
+    *,
+    joint_limits: tuple[np.ndarray, np.ndarray] | None = None,
+    velocity_limits: np.ndarray | None = None,
+    path_constraints: Sequence = (),
+    position_tolerance_m: float = SUCCESS_POSITION_TOLERANCE_M,
+    rotation_tolerance_rad: float = SUCCESS_ROTATION_TOLERANCE_RAD,
+) -> RunJudgement:
+    """Checks a run against the success criteria.
+
+    - each critical configuration reached within ``position_tolerance_m`` (5 mm) and
+      ``rotation_tolerance_rad`` (2 deg) when due;
+    - every path constraint (``tasks.PathConstraint``: tool orientation within
+      ``tolerance_rad`` of ``euler_zyx`` from con_from to con_to) holds on the log;
+    - no robot geometry penetrates an obstacle or a safety shell (min distance > 0);
+    - joint positions inside ``joint_limits`` and speeds inside ``velocity_limits``
+      (the UR5e's, by default) at every logged sample.
+
+    Returns
+    -------
+    RunJudgement
+    """
+    kinematics = UR5eKinematics(X_WB=result.X_WB, X_tool0_E=result.X_tool0_E)
+    if joint_limits is None:
+        joint_limits = kinematics.position_limits()
+    if velocity_limits is None:
+        velocity_limits = kinematics.velocity_limits()
+    lower, upper = (np.asarray(v, dtype=float) for v in joint_limits)
+    velocity_limits = np.asarray(velocity_limits, dtype=float)
+    failures = []
+
+    for error in result.critical_errors:
+        if not error.reached:
+            failures.append(
+                f"con_{error.con}: not reached (the run stopped at t = {result.sim_time_s:.2f} s: "
+                f"{result.stop_reason})"
+            )
+            continue
+        if not error.position_m <= position_tolerance_m:
+            failures.append(
+                f"con_{error.con}: position error {1000 * error.position_m:.1f} mm > "
+                f"{1000 * position_tolerance_m:g} mm (t = {error.time_s:.2f} s)"
+            )
+        if not error.rotation_rad <= rotation_tolerance_rad:
+            failures.append(
+                f"con_{error.con}: rotation error {math.degrees(error.rotation_rad):.2f} deg > "
+                f"{math.degrees(rotation_tolerance_rad):g} deg (t = {error.time_s:.2f} s)"
+            )
+
+    due = [error.time_s for error in result.critical_errors]
+    for constraint in path_constraints:
+        t_from, t_to = due[constraint.con_from - 1], due[constraint.con_to - 1]
+        window = (result.t >= t_from - 1e-9) & (result.t <= t_to + 1e-9)
+        if not np.any(window):
+            continue
+        R_target = rigid_transform_from_euler_zyx(np.zeros(3), constraint.euler_zyx).rotation()
+        angles = np.array(
+            [_rotation_from(kinematics.X_WE(q).rotation(), R_target) for q in result.q[window]]
+        )
+        worst = int(np.argmax(angles))
+        if angles[worst] > constraint.tolerance_rad:
+            failures.append(
+                f"path constraint con_{constraint.con_from}..con_{constraint.con_to}: tool orientation "
+                f"{math.degrees(angles[worst]):.1f} deg from euler_zyx "
+                f"{np.round(constraint.euler_zyx, 4).tolist()} > {math.degrees(constraint.tolerance_rad):g} deg "
+                f"(t = {result.t[window][worst]:.2f} s)"
+            )
+
+    for clearance in result.clearances:
+        if not clearance.distance_m > 0.0:
+            failures.append(
+                f"{clearance.describe()} penetrated by {clearance.robot_geometry} "
+                f"(signed distance {1000 * clearance.distance_m:.1f} mm at t = {clearance.time_s:.2f} s)"
+            )
+
+    for j, name in enumerate(UR5E_JOINT_NAMES):
+        if len(result.q) == 0:
+            break
+        outside = (result.q[:, j] < lower[j]) | (result.q[:, j] > upper[j])
+        if np.any(outside):
+            k = int(np.argmax(outside))
+            failures.append(
+                f"{name}: position {result.q[k, j]:.3f} rad outside [{lower[j]:.3f}, {upper[j]:.3f}] "
+                f"(t = {result.t[k]:.2f} s)"
+            )
+        speeds = np.abs(result.qdot[:, j])
+        k = int(np.argmax(speeds))
+        if speeds[k] > velocity_limits[j]:
+            failures.append(
+                f"{name}: speed {speeds[k]:.2f} rad/s > limit {velocity_limits[j]:.2f} rad/s "
+                f"(t = {result.t[k]:.2f} s)"
+            )
+    return RunJudgement(success=not failures, failures=failures)
+
+
+def _rotation_from(R_a: RotationMatrix, R_b: RotationMatrix) -> float:
+    return float(R_a.inverse().multiply(R_b).ToAngleAxis().angle())

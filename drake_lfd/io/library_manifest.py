@@ -1,0 +1,253 @@
+"""A library's manifest, ``library.json``: its layout, its entries, read and written.
+
+A library directory holds ``library.json`` (the manifest), ``demos/<name>.csv`` (one
+joint log per demonstration) and ``cache/<name>.npz`` (derived feature caches). The
+manifest lists what the library holds and with which end-effector frame::
+
+    {
+      "schema_version": 1,
+      "X_tool0_E": {"p": [0, 0, 0], "q_wxyz": [1, 0, 0, 0]},
+      "demos": [
+        {"name": "screw_cw", "file": "demos/screw_cw.csv", "samples": 501,
+         "duration_s": 5.0, "description": "screw 90 deg clockwise",
+         "added": "2025-01-31T12:00:00+00:00"}
+      ]
+    }
+
+:func:`read_manifest` checks every field (unknown or missing keys, names, paths that
+leave the directory, missing logs, repeated names ignoring case) and reports the first
+problem as one :class:`~drake_lfd.core.errors.InputError` naming the file and the field;
+:func:`write_manifest` replaces the file atomically. The format is documented for users
+in docs/libraries.rst.
+
+Not for: what the library does with its entries (adding, removing, features:
+:mod:`drake_lfd.io.library`), the feature cache files (:mod:`drake_lfd.io.feature_cache`),
+joint logs (:mod:`drake_lfd.io.demonstration_logs`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import re
+from pathlib import Path
+from typing import NamedTuple
+
+from pydrake.math import RigidTransform
+
+from drake_lfd.core.errors import InputError
+from drake_lfd.io.atomic_files import atomic_write_bytes
+from drake_lfd.io.pose_records import pose_json_from_rigid_transform, rigid_transform_from_pose_json
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "MANIFEST_NAME",
+    "DEMOS_DIRECTORY",
+    "CACHE_DIRECTORY",
+    "NAME_PATTERN",
+    "DemoEntry",
+    "Manifest",
+    "check_demo_name",
+    "read_manifest",
+    "manifest_text",
+    "write_manifest",
+]
+
+SCHEMA_VERSION = 1
+MANIFEST_NAME = "library.json"
+DEMOS_DIRECTORY = "demos"
+CACHE_DIRECTORY = "cache"
+NAME_PATTERN = re.compile(r"^[A-Za-z0-9_-]+$")
+
+_MANIFEST_KEYS = ("schema_version", "X_tool0_E", "demos")
+_ENTRY_KEYS = ("name", "file", "samples", "duration_s", "description", "added")
+
+
+def check_demo_name(name):
+    """Raises InputError unless ``name`` matches ``[A-Za-z0-9_-]+``."""
+    if not isinstance(name, str) or not NAME_PATTERN.match(name):
+        raise InputError(
+            f"invalid demonstration name {name!r}: use letters, digits, '_' and '-' only",
+            field="name",
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class DemoEntry:
+    """One demonstration as the manifest lists it.
+
+    Attributes
+    ----------
+    name : str
+    file : str
+        Its joint log, relative to the library directory (``demos/<name>.csv``).
+    samples : int
+        Number of samples in the log.
+    duration_s : float
+        Time from first to last sample.
+    description : str
+    added : str
+        When it was added, ISO 8601 UTC.
+    """
+
+    name: str
+    file: str
+    samples: int
+    duration_s: float
+    description: str
+    added: str
+
+    def to_json(self):
+        return {key: getattr(self, key) for key in _ENTRY_KEYS}
+
+
+class Manifest(NamedTuple):
+    """What ``library.json`` says: the end-effector frame and the entries, in order.
+
+    The frame is kept as the file writes it (``{"p": ..., "q_wxyz": ...}``) and written
+    back unchanged: converting a pose to a ``RigidTransform`` and back can change its
+    last digits, and the frame is part of every feature cache's key.
+    """
+
+    X_tool0_E_json: dict
+    entries: tuple[DemoEntry, ...] = ()
+
+    @classmethod
+    def new(cls, X_tool0_E: RigidTransform) -> "Manifest":
+        """The manifest of an empty library for this end-effector frame."""
+        return cls(X_tool0_E_json=pose_json_from_rigid_transform(X_tool0_E))
+
+    @property
+    def X_tool0_E(self) -> RigidTransform:
+        """The end-effector frame, as every reader of this manifest gets it."""
+        return rigid_transform_from_pose_json(self.X_tool0_E_json, field="X_tool0_E")
+
+    def with_entries(self, entries) -> "Manifest":
+        return self._replace(entries=tuple(entries))
+
+
+def _manifest_error(problem, manifest, field=None):
+    return InputError(problem, file=manifest, field=field)
+
+
+def _parse_entry(value, index, directory, manifest):
+    field = f"demos[{index}]"
+    if not isinstance(value, dict):
+        raise _manifest_error("expected an object describing one demonstration", manifest, field)
+    for key in value:
+        if key not in _ENTRY_KEYS:
+            raise _manifest_error(f"unknown key {key!r}", manifest, f"{field}.{key}")
+    for key in _ENTRY_KEYS:
+        if key not in value:
+            raise _manifest_error("missing", manifest, f"{field}.{key}")
+    name = value["name"]
+    if not isinstance(name, str) or not NAME_PATTERN.match(name):
+        raise _manifest_error(
+            f"invalid demonstration name {name!r} (letters, digits, '_', '-')", manifest, f"{field}.name"
+        )
+    file = value["file"]
+    if not isinstance(file, str) or not file:
+        raise _manifest_error(f"expected a relative path, got {file!r}", manifest, f"{field}.file")
+    relative = Path(file)
+    root = directory.resolve()
+    if relative.is_absolute() or ".." in relative.parts or not (root / relative).resolve().is_relative_to(root):
+        raise _manifest_error(
+            f"{file!r} is not a path inside the library directory", manifest, f"{field}.file"
+        )
+    if not (directory / relative).is_file():
+        raise _manifest_error(f"the joint log {file} is missing", manifest, f"{field}.file")
+    samples = value["samples"]
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 2:
+        raise _manifest_error(f"expected an integer >= 2, got {samples!r}", manifest, f"{field}.samples")
+    duration = value["duration_s"]
+    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not math.isfinite(duration) or duration < 0:
+        raise _manifest_error(
+            f"expected a finite number >= 0, got {duration!r}", manifest, f"{field}.duration_s"
+        )
+    for key in ("description", "added"):
+        if not isinstance(value[key], str):
+            raise _manifest_error(f"expected a string, got {value[key]!r}", manifest, f"{field}.{key}")
+    return DemoEntry(
+        name=name,
+        file=relative.as_posix(),
+        samples=samples,
+        duration_s=float(duration),
+        description=value["description"],
+        added=value["added"],
+    )
+
+
+def read_manifest(directory) -> Manifest:
+    """Reads and checks ``directory/library.json``.
+
+    Raises
+    ------
+    InputError
+        The manifest is missing (the directory is not a library), not valid JSON, or
+        any field is wrong; naming the file and the field.
+    """
+    directory = Path(directory)
+    manifest = directory / MANIFEST_NAME
+    if not manifest.is_file():
+        raise InputError(f"not a drake-lfd library: {MANIFEST_NAME} is missing", file=directory)
+    try:
+        data = json.loads(manifest.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as error:
+        raise _manifest_error(
+            f"not valid JSON ({error.msg})", manifest, f"line {error.lineno} column {error.colno}"
+        ) from None
+    except (UnicodeDecodeError, OSError) as error:
+        raise _manifest_error(f"cannot read: {error}", manifest) from None
+    if not isinstance(data, dict):
+        raise _manifest_error("expected a JSON object", manifest)
+    for key in data:
+        if key not in _MANIFEST_KEYS:
+            raise _manifest_error(f"unknown key {key!r}", manifest, str(key))
+    for key in _MANIFEST_KEYS:
+        if key not in data:
+            raise _manifest_error("missing", manifest, key)
+    version = data["schema_version"]
+    if isinstance(version, bool) or version != SCHEMA_VERSION:
+        raise _manifest_error(
+            f"is {version!r}; this drake-lfd reads schema_version {SCHEMA_VERSION}",
+            manifest,
+            "schema_version",
+        )
+    rigid_transform_from_pose_json(data["X_tool0_E"], file=manifest, field="X_tool0_E")  # checks it
+    if not isinstance(data["demos"], list):
+        raise _manifest_error("expected a list", manifest, "demos")
+    entries = []
+    seen = {}
+    for index, value in enumerate(data["demos"]):
+        entry = _parse_entry(value, index, directory, manifest)
+        if entry.name.lower() in seen:
+            raise _manifest_error(
+                f"name {entry.name!r} repeats demos[{seen[entry.name.lower()]}]",
+                manifest,
+                f"demos[{index}].name",
+            )
+        seen[entry.name.lower()] = index
+        entries.append(entry)
+    return Manifest(X_tool0_E_json=data["X_tool0_E"], entries=tuple(entries))
+
+
+def manifest_text(manifest: Manifest) -> str:
+    """The text of ``library.json`` (ends with a newline)."""
+    # json.dumps(indent=2) would put every number of the pose on its own line;
+    # this layout keeps the pose on one line and each entry as an indented block.
+    demos = ",\n".join(
+        "    " + json.dumps(entry.to_json(), indent=2).replace("\n", "\n    ") for entry in manifest.entries
+    )
+    return (
+        "{\n"
+        f'  "schema_version": {SCHEMA_VERSION},\n'
+        f'  "X_tool0_E": {json.dumps(manifest.X_tool0_E_json)},\n'
+        + ('  "demos": [\n' + demos + "\n  ]\n" if manifest.entries else '  "demos": []\n')
+        + "}\n"
+    )
+
+
+def write_manifest(directory, manifest: Manifest):
+    """Replaces ``directory/library.json`` atomically (old or new, never half of one)."""
+    atomic_write_bytes(Path(directory) / MANIFEST_NAME, manifest_text(manifest).encode("utf-8"))

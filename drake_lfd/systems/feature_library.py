@@ -1,0 +1,151 @@
+"""The feature library as a Drake system: the library's features on an output port.
+
+:class:`FeatureLibrarySystem` holds the features (Eq. 12-13) of a library's
+demonstrations in its abstract state and puts them out as a :class:`LibraryFeatures`
+record. An optional input takes a newly recorded demonstration (for example from a
+:class:`~drake_lfd.systems.demo_recorder.DemoRecorder`): when a demonstration with a new
+name arrives, its feature is computed (UR5e forward kinematics with the library's tool
+frame, arc-length resampling) and added, and the record's ``revision`` goes up, so a
+planner downstream can plan again. Optionally the demonstration is also written to a
+library directory (atomically, as ``drake-lfd library add`` does).
+
+Not for: reading or writing library files (``io/library.py``) or the feature math
+(``core/features.py``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+from typing import Mapping
+
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import DiagramBuilder, EventStatus, LeafSystem, OutputPort
+
+from drake_lfd.core.demonstrations import Demonstration
+from drake_lfd.core.features import DEFAULT_NUM_SAMPLES, DEFAULT_ROTATION_LENGTH_M, Feature
+from drake_lfd.robot.kinematics import UR5eKinematics, dual_quaternions_from_demonstration
+
+__all__ = ["LibraryFeatures", "FeatureLibrarySystem"]
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class LibraryFeatures:
+    """The library's features as they flow between systems.
+
+    Attributes
+    ----------
+    features : Mapping[str, Feature]
+        Read-only, in library order.
+    revision : int
+        0 for the library as loaded; +1 for every demonstration added since.
+    X_tool0_E : RigidTransform
+        The tool frame the demonstrations were recorded with.
+    """
+
+    features: Mapping[str, Feature]
+    revision: int = 0
+    X_tool0_E: RigidTransform = dataclasses.field(default_factory=RigidTransform)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.features)
+
+    def __deepcopy__(self, memo):
+        return self  # immutable: Drake's copies of a Context share it
+
+
+class FeatureLibrarySystem(LeafSystem):
+    """The features of a library, and the demonstrations added during a run.
+
+    .. pydrake_system::
+
+        name: FeatureLibrarySystem
+        input_ports:
+        - demonstration (optional)
+        output_ports:
+        - library
+
+    ``library`` is an abstract :class:`LibraryFeatures`. ``demonstration`` (declared when
+    ``accept_demonstrations`` is True; may stay unconnected) is an abstract
+    :class:`~drake_lfd.core.demonstrations.Demonstration` or None; it is read every
+    ``check_period`` s and a demonstration whose name the library does not have yet is
+    added.
+
+    Parameters
+    ----------
+    features : Mapping[str, Feature]
+        The library's features (for example ``drake_lfd.io.library.library_features``).
+    X_tool0_E : RigidTransform, optional
+        The library's tool frame (used for demonstrations added during the run).
+    accept_demonstrations : bool
+    check_period : float
+        s.
+    num_samples, rotation_length_m :
+        Feature resampling of added demonstrations (the library's settings).
+    library : drake_lfd.io.library.Library, optional
+        Also add each new demonstration to this library directory.
+    """
+
+    def __init__(
+        self,
+        *,
+        features: Mapping[str, Feature],
+        X_tool0_E: RigidTransform | None = None,
+        accept_demonstrations: bool = False,
+        check_period: float = 0.05,
+        num_samples: int = DEFAULT_NUM_SAMPLES,
+        rotation_length_m: float = DEFAULT_ROTATION_LENGTH_M,
+        library=None,
+    ):
+        super().__init__()
+        self._X_tool0_E = RigidTransform() if X_tool0_E is None else RigidTransform(X_tool0_E)
+        self._num_samples = int(num_samples)
+        self._rotation_length_m = float(rotation_length_m)
+        self._library = library
+        self._kinematics = None  # built on the first added demonstration
+        initial = LibraryFeatures(types.MappingProxyType(dict(features)), 0, self._X_tool0_E)
+        self._state_index = self.DeclareAbstractState(AbstractValue.Make(initial))
+        self.library_output_port = self.DeclareStateOutputPort("library", self._state_index)
+        self.demonstration_input_port = None
+        if accept_demonstrations:
+            self.demonstration_input_port = self.DeclareAbstractInputPort(
+                "demonstration", AbstractValue.Make(object()))
+            self.DeclarePeriodicUnrestrictedUpdateEvent(check_period, 0.0, self._add_new_demonstration)
+
+    @staticmethod
+    def AddToBuilder(*, builder: DiagramBuilder, features: Mapping[str, Feature],
+                     demonstration_output_port: OutputPort | None = None,
+                     name: str = "feature_library", **kwargs) -> "FeatureLibrarySystem":
+        """Adds the system named ``name``; connects ``demonstration_output_port`` when given."""
+        system = builder.AddNamedSystem(name, FeatureLibrarySystem(
+            features=features, accept_demonstrations=demonstration_output_port is not None, **kwargs))
+        if demonstration_output_port is not None:
+            builder.Connect(demonstration_output_port, system.demonstration_input_port)
+        return system
+
+    def feature_of(self, demonstration: Demonstration) -> Feature:
+        """The feature of a demonstration under this library's tool frame and sampling."""
+        if self._kinematics is None:
+            self._kinematics = UR5eKinematics(X_tool0_E=self._X_tool0_E)
+        poses = dual_quaternions_from_demonstration(demonstration, self._kinematics)
+        return Feature.from_poses(poses, num_samples=self._num_samples, rotation_length_m=self._rotation_length_m)
+
+    def _add_new_demonstration(self, context, state):
+        port = self.demonstration_input_port
+        if not port.HasValue(context):
+            return EventStatus.DidNothing()
+        demonstration = port.Eval(context)
+        if not isinstance(demonstration, Demonstration):
+            return EventStatus.DidNothing()
+        current = context.get_abstract_state(self._state_index).get_value()
+        if demonstration.name in current.features:
+            return EventStatus.DidNothing()
+        features = dict(current.features)
+        features[demonstration.name] = self.feature_of(demonstration)
+        if self._library is not None:
+            self._library.add(demonstration, demonstration.name, demonstration.description)
+        state.get_mutable_abstract_state(self._state_index).set_value(
+            LibraryFeatures(types.MappingProxyType(features), current.revision + 1, self._X_tool0_E))
+        return EventStatus.Succeeded()

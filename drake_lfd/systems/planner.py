@@ -1,0 +1,150 @@
+"""The planner as a Drake system: task and library in, a scheduled plan out.
+
+:class:`PlannerSystem` runs :func:`drake_lfd.planning.planner.plan_task` (the exact
+shortest-path planner or the Q-policy's greedy walk) inside a Diagram. It plans at
+initialization, and every ``check_period`` s it compares its inputs with what its plan
+was made for: when the task (or the library) has changed, it plans again from where the
+robot is on the current plan, following the paper's MDP (the state is the current
+configuration and the critical configurations still ahead; see
+:mod:`drake_lfd.planning.replanning` for where the new motion joins the old one). The
+plan lives in the system's abstract state, so it is part of the Context: one Diagram
+runs many trials by changing the task input.
+
+Not for: the planning itself (``planning/``) or following the plan
+(``plan_trajectory_source.py``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context, DiagramBuilder, EventStatus, LeafSystem, OutputPort
+
+from drake_lfd.core.tasks import ConcreteTask
+from drake_lfd.planning.planner import PLANNERS, PlanResult, plan_task
+from drake_lfd.planning.q_learning import QPolicy
+from drake_lfd.planning.replanning import ScheduledPlan, replan, task_fingerprint
+from drake_lfd.systems.feature_library import LibraryFeatures
+
+__all__ = ["PlannerSystem"]
+
+
+class PlannerSystem(LeafSystem):
+    """Plans the task on its input with the library on its input.
+
+    .. pydrake_system::
+
+        name: PlannerSystem
+        input_ports:
+        - task
+        - library
+        output_ports:
+        - plan
+
+    ``task`` is an abstract :class:`~drake_lfd.core.tasks.ConcreteTask`; ``library`` an
+    abstract :class:`~drake_lfd.systems.feature_library.LibraryFeatures`; ``plan`` an
+    abstract :class:`~drake_lfd.planning.replanning.ScheduledPlan` (None before the
+    first plan). A task's ``seed`` (when set) seeds the Q-planner's refinement.
+
+    Parameters
+    ----------
+    planner : {"exact", "q"}
+    policy : QPolicy, optional
+        Needed by the ``q`` planner.
+    start_time_s : float
+        Simulation time at which the first plan's motion starts (the settling time).
+    floor_z : float, optional
+        Height of the table top the tool path must stay above.
+    check_period : float
+        How often the inputs are compared with the plan's, s.
+    """
+
+    def __init__(
+        self,
+        *,
+        planner: str = "exact",
+        policy: QPolicy | None = None,
+        start_time_s: float = 0.0,
+        floor_z: float | None = None,
+        check_period: float = 0.05,
+    ):
+        super().__init__()
+        if planner not in PLANNERS:
+            raise ValueError(f"planner must be one of {PLANNERS}, got {planner!r}")
+        if planner == "q" and policy is None:
+            raise ValueError("the q planner needs a policy")
+        self._planner = planner
+        self._policy = policy
+        self._start_time_s = float(start_time_s)
+        self._floor_z = floor_z
+        self.task_input_port = self.DeclareAbstractInputPort("task", AbstractValue.Make(object()))
+        self.library_input_port = self.DeclareAbstractInputPort("library", AbstractValue.Make(object()))
+        self._state_index = self.DeclareAbstractState(AbstractValue.Make(object()))
+        self.plan_output_port = self.DeclareStateOutputPort("plan", self._state_index)
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._update)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(check_period, 0.0, self._update)
+
+    @staticmethod
+    def AddToBuilder(*, builder: DiagramBuilder, library_output_port: OutputPort,
+                     task_output_port: OutputPort | None = None, name: str = "planner",
+                     **kwargs) -> "PlannerSystem":
+        """Adds a planner named ``name`` fed by the library (and the task, when given;
+        otherwise export or fix its ``task`` input)."""
+        planner = builder.AddNamedSystem(name, PlannerSystem(**kwargs))
+        builder.Connect(library_output_port, planner.library_input_port)
+        if task_output_port is not None:
+            builder.Connect(task_output_port, planner.task_input_port)
+        return planner
+
+    @property
+    def planner(self) -> str:
+        return self._planner
+
+    def plan(self, task: ConcreteTask, library: LibraryFeatures) -> PlanResult:
+        """One plan of ``task`` with this system's settings (no state involved)."""
+        return plan_task(task, library.features, planner=self._planner, policy=self._policy,
+                         seed=0 if task.seed is None else int(task.seed), floor_z=self._floor_z)
+
+    def scheduled_plan(self, context: Context) -> ScheduledPlan | None:
+        """The plan in ``context`` (this system's), or None before the first."""
+        value = context.get_abstract_state(self._state_index).get_value()
+        return value if isinstance(value, ScheduledPlan) else None
+
+    def next_plan(self, context: Context) -> ScheduledPlan | None:
+        """The plan for the inputs in ``context``: the current one when nothing changed,
+        a first plan, or a replan from the current configuration."""
+        task = self.task_input_port.Eval(context)
+        library = self.library_input_port.Eval(context)
+        if not isinstance(task, ConcreteTask) or not isinstance(library, LibraryFeatures):
+            return self.scheduled_plan(context)
+        current = self.scheduled_plan(context)
+        if current is not None and len(current.inputs) == 2 and current.inputs[0] is task \
+                and current.inputs[1] is library:
+            return current  # the very objects it was planned for: nothing to compare
+        digest = task_fingerprint(task)
+        inputs = (task, library)
+        if current is None:
+            return ScheduledPlan(self.plan(task, library), self._start_time_s, digest, library.revision,
+                                 inputs=inputs)
+        if current.task_fingerprint == digest and current.library_revision == library.revision:
+            return dataclasses.replace(current, inputs=inputs)
+        scheduled = replan(current, task, library.features, context.get_time(),
+                           lambda sub_task: self.plan(sub_task, library),
+                           task_digest=digest, library_revision=library.revision)
+        return dataclasses.replace(scheduled, inputs=inputs)
+
+    def plan_now(self, root_context: Context) -> ScheduledPlan | None:
+        """Plans into the state right away (before a Simulator initializes, for example
+        to place the robot at the plan's start); initialization then keeps it."""
+        context = self.GetMyMutableContextFromRoot(root_context)
+        plan = self.next_plan(context)
+        context.get_mutable_abstract_state(self._state_index).set_value(plan)
+        return plan
+
+    def _update(self, context, state):
+        plan = self.next_plan(context)
+        if plan is self.scheduled_plan(context):
+            return EventStatus.DidNothing()  # the Simulator then leaves the state alone
+        state.get_mutable_abstract_state(self._state_index).set_value(plan)
+        return EventStatus.Succeeded()
