@@ -38,7 +38,7 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from drake_lfd.diagrams.closed_loop import plan_through_joint_configurations, run_closed_loop
-from drake_lfd.diagrams.config import CLOSED_LOOP_TIME_STEP_S, PipelineConfig, StationConfig
+from drake_lfd.io.simulation_config import CLOSED_LOOP_TIME_STEP_S, PipelineConfig, StationConfig
 from drake_lfd.diagrams.pipeline import build_pipeline
 from drake_lfd.systems.differential_ik import pose_error
 from drake_lfd.robot.kinematics import UR5eKinematics

@@ -18,13 +18,14 @@ simulates as long as that trial did, and the ratio is of the sums.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from drake_lfd.core.resources import scenarios_directory
-from drake_lfd.diagrams.config import PipelineConfig
+from drake_lfd.io.simulation_config import PipelineConfig, load_pipeline_config
 from drake_lfd.diagrams.station import build_station
 from drake_lfd.experiments.simulation import TrialRunner
 from drake_lfd.io.library import Library, library_features
@@ -53,10 +54,18 @@ def bare_station_wall_s(task, duration_s: float) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=10)
+    parser.add_argument("--controller-period", type=float, default=None, help="s (default: the task's)")
+    parser.add_argument("--monitor-period", type=float, default=None, help="s (default: the task's)")
     args = parser.parse_args()
     task = load_task(scenarios_directory() / "transferring.yaml")
     features = library_features(Library.open("paper5"))
-    runner = TrialRunner(task, features)
+    config = load_pipeline_config(task.file)
+    if args.controller_period is not None:
+        config = dataclasses.replace(config, controller=dataclasses.replace(
+            config.controller, time_step=args.controller_period)).checked()
+    if args.monitor_period is not None:
+        config = dataclasses.replace(config, monitor=dataclasses.replace(config.monitor, period=args.monitor_period))
+    runner = TrialRunner(task, features, config=config)
     outcomes, wall, bare_wall = [], 0.0, 0.0
     for i in range(args.trials):
         start = time.perf_counter()

@@ -70,7 +70,7 @@ _ENTRY_POINTS = {
     "Station": "drake_lfd.diagrams.station",
     "build_pipeline": "drake_lfd.diagrams.pipeline",
     "Pipeline": "drake_lfd.diagrams.pipeline",
-    "PipelineConfig": "drake_lfd.diagrams.config",
+    "PipelineConfig": "drake_lfd.io.simulation_config",
     "ClosedLoopRunner": "drake_lfd.diagrams.closed_loop",
     "run_trials": "drake_lfd.experiments.simulation",
     "judge_run": "drake_lfd.experiments.judging",

@@ -1,5 +1,5 @@
 """The station Diagram owns what it uses, names its ports ``ur5e.<quantity>`` and is
-configured by typed dataclasses (``drake_lfd.diagrams.config``)."""
+configured by typed dataclasses (``drake_lfd.io.simulation_config``)."""
 
 import subprocess
 import sys
@@ -11,7 +11,7 @@ from pydrake.systems.analysis import Simulator
 
 import drake_lfd.diagrams.station as mut
 from drake_lfd.core.errors import InputError
-from drake_lfd.diagrams.config import PipelineConfig, StationConfig, pipeline_config_from_text
+from drake_lfd.io.simulation_config import PipelineConfig, StationConfig, pipeline_config_from_text
 
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -np.pi / 2, 0.0])
 
@@ -114,3 +114,27 @@ def test_bad_simulation_blocks_are_refused_naming_the_field(block, field):
         pipeline_config_from_text("name: t\n" + block, file="task.yaml")
     assert error.value.field == field
     assert "task.yaml" in str(error.value)
+
+
+def test_a_task_files_simulation_block_configures_the_pipeline(tmp_path):
+    from drake_lfd.core.resources import scenarios_directory
+    from drake_lfd.diagrams.pipeline import build_pipeline
+    from drake_lfd.io.library import Library, library_features
+    from drake_lfd.io.task_files import load_task
+
+    text = (scenarios_directory() / "transferring.yaml").read_text()
+    path = tmp_path / "task.yaml"
+    path.write_text(text + "\nsimulation:\n  settle_s: 0.3\n  station: {time_step: 0.002}\n")
+    task = load_task(path)
+    assert task.simulation.settle_s == 0.3 and task.simulation.station.time_step == 0.002
+    pipeline = build_pipeline(task, library_features(Library.open("paper5")), config=task.simulation)
+    assert pipeline.station.time_step == 0.002
+    context = pipeline.CreateDefaultContext()
+    from drake_lfd.core.tasks import draw_trial
+
+    pipeline.task_input_port.FixValue(context, draw_trial(task, 0))
+    assert pipeline.planner.plan_now(context).start_time_s == 0.3
+    path.write_text(text + "\nsimulation:\n  settle_s: abc\n")
+    with pytest.raises(InputError) as error:
+        load_task(path)
+    assert error.value.field == "simulation.settle_s"

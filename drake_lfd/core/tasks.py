@@ -130,6 +130,9 @@ class Task:
     path_constraints: tuple = ()
     description: str = ""
     file: str | None = None
+    # The task file's optional ``simulation:`` block, checked: an
+    # ``io.simulation_config.PipelineConfig`` (None: the defaults).
+    simulation: object = None
 
     def __len__(self):
         return len(self.critical_configurations)

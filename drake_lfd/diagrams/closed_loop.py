@@ -43,7 +43,7 @@ from pydrake.systems.analysis import Simulator
 from drake_lfd.core.dual_quaternion import dual_quaternion_from_rigid_transform, dual_quaternion_sclerp
 from drake_lfd.core.tasks import ConcreteTask
 from drake_lfd.core.timing import TimedPlan, time_plan
-from drake_lfd.diagrams.config import PipelineConfig
+from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.diagrams.pipeline import Pipeline, build_pipeline
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.initial_ik import InitialConfiguration, solve_initial_configuration

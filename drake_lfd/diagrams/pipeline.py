@@ -32,7 +32,7 @@ from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
 from drake_lfd.core.features import Feature
 from drake_lfd.core.tasks import Box, ConcreteTask
 from drake_lfd.core.timing import TimedPlan
-from drake_lfd.diagrams.config import PipelineConfig
+from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.diagrams.station import Station
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.q_learning import QPolicy

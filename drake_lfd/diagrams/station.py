@@ -26,7 +26,7 @@ gear, commanded at a fixed rate):
   geared arm it dominates the wrists' inertia. It is realism, not a stability fix: the
   implicit PD is stable without it, and tracking measured the same within 0.02 mm.
 
-Gains, steps and periods come from a :class:`~drake_lfd.diagrams.config.StationConfig`.
+Gains, steps and periods come from a :class:`~drake_lfd.io.simulation_config.StationConfig`.
 
 Not for: choosing the command (``differential_ik.py``), measuring shell distances
 (``shell_monitor.py``), running or judging a simulation (``closed_loop.py``).
@@ -50,7 +50,7 @@ from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, SharedPointerSystem, StateInterpolatorWithDiscreteDerivative
 
 from drake_lfd.core.tasks import Box
-from drake_lfd.diagrams.config import DriveConfig, StationConfig
+from drake_lfd.io.simulation_config import DriveConfig, StationConfig
 from drake_lfd.robot.kinematics import NUM_JOINTS, UR5E_JOINT_NAMES, add_ur5e
 from drake_lfd.robot.scene import SceneGeometry, add_scene
 

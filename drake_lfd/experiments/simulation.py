@@ -23,7 +23,7 @@ import numpy as np
 from pydrake.geometry import Meshcat
 
 from drake_lfd.diagrams.closed_loop import ClosedLoopResult, ClosedLoopRunner
-from drake_lfd.diagrams.config import PipelineConfig, load_pipeline_config
+from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.diagrams.pipeline import build_pipeline
 from drake_lfd.experiments.judging import judge_run
 from drake_lfd.core.errors import InputError
@@ -66,7 +66,7 @@ class TrialRunner:
                  policy: QPolicy | None = None, with_table: bool = True, config: PipelineConfig | None = None):
         self.task = task
         self._options = dict(features=features, planner=planner, policy=policy, with_table=with_table,
-                             config=config if config is not None else load_pipeline_config(task.file))
+                             config=config if config is not None else task.simulation)
         self._runner = ClosedLoopRunner(build_pipeline(task, **self._options))
         self._recording_runner = None
         kinematics = UR5eKinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)

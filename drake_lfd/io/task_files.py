@@ -76,6 +76,7 @@ from drake_lfd.core.tasks import (
 
 # The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
 # scripts, so both report problems alike.
+from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.io.yaml_checks import PoseSpec, Scalar, angle, finite, load_spec, pose, read_text, required, vector
 
 __all__ = [
@@ -145,6 +146,7 @@ class TaskSpec:
     obstacles: list[BoxSpec] = dataclasses.field(default_factory=list)
     safety_shells: list[BoxSpec] = dataclasses.field(default_factory=list)
     path_constraints: list[PathConstraintSpec] = dataclasses.field(default_factory=list)
+    simulation: PipelineConfig = dataclasses.field(default_factory=PipelineConfig)
 
 
 # ----------------------------------------------------------------------------- loading
@@ -346,6 +348,7 @@ def task_from_spec(spec, *, file=None):
         path_constraints=tuple(constraints),
         description=spec.description,
         file=None if file is None else str(file),
+        simulation=spec.simulation.checked(file=file),
     )
 
 

@@ -239,6 +239,10 @@ def check_schema(value, schema, path, file, expected=None):
     InputError
         A value of the wrong kind, an unknown key, or a missing :func:`required` field.
     """
+    if schema is bool:
+        if not isinstance(value, bool):
+            raise InputError(f"expected true or false, got {kind_of(value)}", file=file, field=path)
+        return
     if schema in (float, int, str):
         if not _matches_scalar(value, schema):
             raise InputError(f"expected {_describe(schema)}, got {kind_of(value)}", file=file, field=path)
