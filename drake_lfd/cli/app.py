@@ -15,6 +15,8 @@ import sys
 from drake_lfd import __version__
 from drake_lfd.core.errors import EXIT_BAD_INPUT, EXIT_FAILURE, InputError
 
+__all__ = ['build_parser', 'main']
+
 # Modules that each add one subcommand, in the order --help lists them. A module that
 # is missing (a later issue not yet shipped) is simply skipped.
 _COMMAND_MODULES = (

@@ -10,6 +10,8 @@ from pathlib import Path
 
 from drake_lfd.core.errors import InputError
 
+__all__ = ['require_at_least', 'require_seed', 'require_folder_of']
+
 
 def require_at_least(value: int, least: int, option: str) -> int:
     """``value`` if it is at least ``least``."""

@@ -7,6 +7,8 @@ from pathlib import Path
 from drake_lfd.cli.argument_checks import require_at_least, require_seed
 from drake_lfd.core.errors import InputError
 
+__all__ = ['add_parser', 'run']
+
 
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(

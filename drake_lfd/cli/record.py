@@ -18,6 +18,8 @@ from drake_lfd.core.errors import InputError
 from drake_lfd.io.guidance_scripts import load_guidance_script
 from drake_lfd.diagrams.kinesthetic import record_demonstration
 
+__all__ = ['add_parser', 'run']
+
 
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(

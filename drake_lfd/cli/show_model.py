@@ -8,6 +8,8 @@ import numpy as np
 
 from drake_lfd.core.errors import InputError
 
+__all__ = ['add_parser', 'run']
+
 
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(

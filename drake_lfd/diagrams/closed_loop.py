@@ -48,6 +48,7 @@ from drake_lfd.diagrams.pipeline import Pipeline, build_pipeline
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.initial_ik import InitialConfiguration, solve_initial_configuration
 from drake_lfd.robot.kinematics import NUM_JOINTS, UR5eKinematics
+from drake_lfd.robot.scene import KinematicScene
 from drake_lfd.systems.shell_monitor import BoxClearance
 
 __all__ = [
@@ -248,6 +249,9 @@ class ClosedLoopRunner:
         self.simulator = Simulator(pipeline)
         station = pipeline.station
         self.kinematics = UR5eKinematics(X_WB=station.X_WB, X_tool0_E=station.X_tool0_E)
+        # The collision scene of the initial inverse kinematics, built once for all trials.
+        self._ik_scene = KinematicScene(X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
+                                        obstacles=station.obstacles, safety_shells=station.safety_shells)
         self._velocity_limits = station.plant.GetVelocityUpperLimits()[:NUM_JOINTS].copy()
 
     def plan(self, task: ConcreteTask | None = None) -> ScheduledPlan:
@@ -310,7 +314,7 @@ class ClosedLoopRunner:
         if q_initial is None:
             initial_configuration = solve_initial_configuration(
                 X_WE_start, X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
-                obstacles=station.obstacles, safety_shells=station.safety_shells)
+                obstacles=station.obstacles, safety_shells=station.safety_shells, scene=self._ik_scene)
             q_initial = initial_configuration.q
         q_initial = np.asarray(q_initial, dtype=float)
         station.set_initial_positions(context, q_initial)

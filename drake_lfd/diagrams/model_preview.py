@@ -17,6 +17,8 @@ from pydrake.systems.framework import DiagramBuilder
 
 from drake_lfd.robot.kinematics import add_ur5e
 
+__all__ = ['SHOWCASE_CONFIGURATIONS', 'write_configurations_html']
+
 # Configurations a UR5e user recognises: zero (stretched along -x), the "home" pose UR
 # ships (upright), and an elbow-up working pose above the table.
 SHOWCASE_CONFIGURATIONS = np.array(

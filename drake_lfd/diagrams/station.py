@@ -230,16 +230,6 @@ class Station(Diagram):
         self.interpolator.set_initial_position(self.interpolator.GetMyMutableContextFromRoot(root_context), q)
 
 
-def build_station(
-    *,
-    X_WB: RigidTransform | None = None,
-    X_tool0_E: RigidTransform | None = None,
-    obstacles: Iterable[Box] = (),
-    safety_shells: Iterable[Box] = (),
-    table: Box | None = None,
-    meshcat: Meshcat | None = None,
-    config: StationConfig | None = None,
-) -> Station:
-    """Builds the UR5e station Diagram (see :class:`Station` for the arguments)."""
-    return Station(X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles, safety_shells=safety_shells,
-                   table=table, meshcat=meshcat, config=config)
+def build_station(**kwargs) -> Station:
+    """Builds the UR5e station Diagram; the keyword arguments are :class:`Station`'s."""
+    return Station(**kwargs)

@@ -13,6 +13,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+__all__ = [
+    'training_curve_figure',
+    'plan_figure',
+    'JOINT_LABELS',
+    'joint_trajectories_figure',
+    'shell_distance_figure',
+]
+
 
 def training_curve_figure(path, curve, *, steady_episode=None, exploring=None,
                           title="Training (Fig. 7)") -> Path:

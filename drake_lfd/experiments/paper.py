@@ -44,6 +44,8 @@ from drake_lfd.core.tasks import draw_trial
 from drake_lfd.io.task_files import load_task
 from drake_lfd.planning.training import train_on_random_tasks
 
+__all__ = ['PAPER', 'run_paper', 'report_markdown']
+
 PAPER = {
     "training_time_s": 1927.42,
     "training_machine": "Matlab, 4-core 4.0 GHz Intel Core i7",

@@ -20,6 +20,17 @@ import dataclasses
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 
+__all__ = [
+    'DH_D',
+    'DH_A',
+    'DH_ALPHA',
+    'POSITION_LIMITS',
+    'SPEED_LIMIT',
+    'dh_forward_kinematics',
+    'Rederivation',
+    'rederive_run',
+]
+
 # Universal Robots' UR5e DH parameters and joint limits (data sheet).
 DH_D = np.array([0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996])
 DH_A = np.array([0.0, -0.425, -0.3922, 0.0, 0.0, 0.0])

@@ -35,6 +35,18 @@ from drake_lfd.io.pose_records import pose_json_from_rigid_transform
 from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.core.tasks import Task, draw_trial
 
+__all__ = [
+    'TrialOutcome',
+    'TrialRunner',
+    'run_trial',
+    'run_trials',
+    'simulate_json',
+    'composition_counts',
+    'clearance_over_time',
+    'write_trial_figures',
+    'trial_summary_line',
+]
+
 
 @dataclasses.dataclass
 class TrialOutcome:

@@ -29,6 +29,18 @@ from drake_lfd.core.dual_quaternion import (
 from drake_lfd.io.library import Library
 from drake_lfd.core.similarity import rotation_distance
 
+__all__ = [
+    'PAPER_TABLE5',
+    'PAPER_LABELS',
+    'SAMPLES',
+    'ROTATION_MATCH',
+    'Row',
+    'compare',
+    'paper_directions_in_start_frame',
+    'markdown',
+    'main',
+]
+
 # The paper's Table 5: for each demonstration, (d_t, d_r) of delta_1, delta_2, delta_3.
 # d_t is written there as a pure quaternion (0, x, y, z); only (x, y, z) is kept here.
 PAPER_TABLE5 = {

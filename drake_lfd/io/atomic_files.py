@@ -11,6 +11,8 @@ import os
 import tempfile
 from pathlib import Path
 
+__all__ = ['fsync_directory', 'atomic_write_bytes', 'atomic_write_json']
+
 def fsync_directory(directory):
     try:
         fd = os.open(directory, os.O_RDONLY)

@@ -9,6 +9,14 @@ from drake_lfd.core.dual_quaternion import translation_rotation_from_dual_quater
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
 
+__all__ = [
+    'critical_configurations_json',
+    'composition_json',
+    'uncovered_json',
+    'plan_json',
+    'describe_uncovered',
+]
+
 
 def _floats(values) -> list[float]:
     return [float(v) for v in values]

@@ -20,6 +20,13 @@ from pydrake.math import RigidTransform, RotationMatrix
 
 from drake_lfd.core.errors import InputError
 
+__all__ = [
+    'UNIT_NORM_TOLERANCE',
+    'POSE_KEYS',
+    'pose_json_from_rigid_transform',
+    'rigid_transform_from_pose_json',
+]
+
 # A stored quaternion may be off unit norm by rounding in whatever wrote it; more than
 # this means the numbers are not a rotation (a typo, or a different convention).
 UNIT_NORM_TOLERANCE = 1e-6

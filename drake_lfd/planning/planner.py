@@ -39,6 +39,26 @@ from drake_lfd.core.timing import (
     time_plan,
 )
 
+__all__ = [
+    'PLANNERS',
+    'ComposedStep',
+    'UncoveredSegment',
+    'PlanResult',
+    'task_candidates',
+    'build_problem',
+    'uncovered_segments',
+    'WRIST_BEHIND_FLANGE_M',
+    'LINK_RADIUS_M',
+    'tool_clearance_points',
+    'TWIST_CANDIDATES_RAD',
+    'CLEARANCE_GOAL_M',
+    'box_signed_distance',
+    'path_clearance',
+    'map_span_clear',
+    'compose_plan',
+    'plan_task',
+]
+
 PLANNERS = ("exact", "q")
 
 

@@ -78,6 +78,8 @@ class ScheduledPlan:
             trajectory = self.result.timed.to_piecewise_pose()
         object.__setattr__(self, "_trajectory", trajectory)
         object.__setattr__(self, "_velocity", None if trajectory is None else trajectory.MakeDerivative())
+        # Evaluated every control period: plain floats, no array indexing.
+        object.__setattr__(self, "_duration_s", 0.0 if trajectory is None else float(self.result.timed.times[-1]))
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of a Context share it
@@ -107,17 +109,17 @@ class ScheduledPlan:
 
     def plan_time(self, t: float) -> float:
         """The plan's time at simulation time ``t``, clamped to ``[0, duration]``."""
-        return min(max(t - self.start_time_s, 0.0), self.timed.duration)
+        return min(max(t - self.start_time_s, 0.0), self._duration_s)
 
     def X_WE_desired(self, t: float) -> RigidTransform:
         """Desired pose of E at simulation time ``t`` (held before and after the plan)."""
-        return self._trajectory.GetPose(self.plan_time(t))
+        return self._trajectory.GetPose(min(max(t - self.start_time_s, 0.0), self._duration_s))
 
     def V_WE_desired(self, t: float) -> np.ndarray:
         """Desired spatial velocity ``[omega, v]`` of E at ``t``, shape (6,); zero
         outside the plan."""
         tau = t - self.start_time_s
-        if tau <= 0.0 or tau >= self.timed.duration:
+        if tau <= 0.0 or tau >= self._duration_s:
             return np.zeros(6)
         return self._velocity.value(tau)[:, 0]
 

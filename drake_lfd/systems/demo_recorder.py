@@ -19,6 +19,8 @@ from pydrake.systems.framework import LeafSystem
 from drake_lfd.core.demonstrations import RTDE_RATE_HZ, Demonstration
 from drake_lfd.io.demonstration_logs import write_rtde_csv
 
+__all__ = ['DemoRecorder']
+
 # Timestamps are rounded to this many decimals (1 us): sample times are multiples of
 # the period, and rounding keeps the CSV free of 0.30000000000000004-style digits.
 _TIMESTAMP_DECIMALS = 6

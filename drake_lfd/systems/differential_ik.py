@@ -63,7 +63,18 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable, ModelInstanceIndex
 from pydrake.systems.framework import LeafSystem
 
-DEFAULT_TIME_STEP_S = 0.01
+__all__ = [
+    'DEFAULT_CONTROLLER_PERIOD_S',
+    'DEFAULT_VELOCITY_LIMIT_FRACTION',
+    'DEFAULT_POSITION_GAIN',
+    'COMMAND_READY_BEFORE_SAMPLE_S',
+    'METHODS',
+    'pose_error',
+    'right_pseudo_inverse_velocity',
+    'DifferentialIKController',
+]
+
+DEFAULT_CONTROLLER_PERIOD_S = 0.01
 DEFAULT_VELOCITY_LIMIT_FRACTION = 0.7
 DEFAULT_POSITION_GAIN = 20.0  # 1/s, on the pose error (both translation and rotation)
 # The controller updates this long before each multiple of its period, when the drive
@@ -142,7 +153,7 @@ class DifferentialIKController(LeafSystem):
         plant: MultibodyPlant,
         model: ModelInstanceIndex,
         frame_E: Frame,
-        time_step: float = DEFAULT_TIME_STEP_S,
+        time_step: float = DEFAULT_CONTROLLER_PERIOD_S,
         method: str = "drake",
         position_gain: float = DEFAULT_POSITION_GAIN,
         velocity_limit_fraction: float = DEFAULT_VELOCITY_LIMIT_FRACTION,

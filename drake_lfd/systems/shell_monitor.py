@@ -26,7 +26,9 @@ from pydrake.geometry import GeometryId, QueryObject
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import EventStatus, LeafSystem
 
-DEFAULT_PERIOD_S = 0.01
+__all__ = ['DEFAULT_MONITOR_PERIOD_S', 'BoxClearance', 'ShellMonitor']
+
+DEFAULT_MONITOR_PERIOD_S = 0.01
 
 
 @dataclass(frozen=True)
@@ -98,7 +100,7 @@ class ShellMonitor(LeafSystem):
         plant: MultibodyPlant,
         robot_geometry_ids: Sequence[GeometryId],
         shell_geometry_ids: Sequence[GeometryId],
-        period: float = DEFAULT_PERIOD_S,
+        period: float = DEFAULT_MONITOR_PERIOD_S,
         stop_on_penetration: bool = False,
         names: Mapping | None = None,
         kinds: Mapping | None = None,
