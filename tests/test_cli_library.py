@@ -39,13 +39,17 @@ def tree_digest(root):
     return digest.hexdigest()
 
 
+# A new library's frame must be given (no silent identity); this is E = tool0.
+IDENTITY = ["--tool0-E-p", "0", "0", "0", "--tool0-E-euler-zyx", "0", "0", "0"]
+
+
 @pytest.fixture
 def library(tmp_path, capsys):
     """A library directory holding one demonstration, ``first``."""
     log = tmp_path / "first.csv"
     log.write_text(log_text(1))
     root = tmp_path / "lib"
-    assert main(["library", "add", str(root), str(log), "--name", "first"]) == 0
+    assert main(["library", "add", str(root), str(log), "--name", "first", *IDENTITY]) == 0
     capsys.readouterr()
     return root
 
@@ -86,7 +90,8 @@ def test_bad_logs_refused_with_one_line_and_library_unchanged(library, tmp_path,
     assert tree_digest(library) == before
     # Nor is a new library created by a refused add.
     fresh = tmp_path / f"fresh_{kind}"
-    assert main(["library", "add", str(fresh), str(log), "--name", "second"]) == 2
+    assert main(["library", "add", str(fresh), str(log), "--name", "second", *IDENTITY]) == 2
+    assert str(log) in capsys.readouterr().err
     assert not fresh.exists()
 
 

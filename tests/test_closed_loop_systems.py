@@ -333,3 +333,41 @@ def test_table_under_the_robot_touches_nothing_at_rest():
     assert scene.geometry.names[scene.geometry.table_geometry_id] == "table"
     # The base sits on the table (both welded to the world: filtered), the arm is clear.
     assert len(_query_object(scene, Q_HOME).ComputePointPairPenetration()) == 0
+
+
+def test_systems_wire_themselves_with_add_to_builder():
+    """Each stage's AddToBuilder connects it as the pipeline does; 0.3 s of tracking."""
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantValueSource
+    from pydrake.common.value import AbstractValue
+
+    from drake_lfd.core.tasks import Box
+    from drake_lfd.systems.differential_ik import DifferentialIKController
+    from drake_lfd.systems.shell_monitor import ShellMonitor
+
+    builder = DiagramBuilder()
+    station = builder.AddSystem(build_station(safety_shells=[Box(name="far", centre=[2.0, 2.0, 2.0], size=[0.1] * 3)]))
+    plan = plan_through_joint_configurations([Q_HOME, Q_OTHER])
+    given = builder.AddSystem(ConstantValueSource(AbstractValue.Make(scheduled_plan_from_timed(plan))))
+    source = mut_source.PlanTrajectorySource.AddToBuilder(builder=builder, plan_output_port=given.get_output_port())
+    plant = station.controller_plant
+    controller = DifferentialIKController.AddToBuilder(
+        builder=builder, plant=plant, model=station.controller_model, frame_E=plant.GetFrameByName("E"),
+        X_WE_desired_output_port=source.X_WE_desired_output_port,
+        V_WE_desired_output_port=source.V_WE_desired_output_port,
+        q_measured_output_port=station.GetOutputPort("ur5e.position_measured"),
+        q_command_input_port=station.GetInputPort("ur5e.position_command"))
+    monitor = ShellMonitor.AddToBuilder(
+        builder=builder, plant=station.plant, query_object_output_port=station.GetOutputPort("query_object"),
+        robot_geometry_ids=station.scene.robot_geometry_ids, shell_geometry_ids=station.scene.keep_out_geometry_ids)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    station.set_initial_positions(simulator.get_mutable_context(), Q_HOME)
+    simulator.AdvanceTo(0.3)
+    context = simulator.get_context()
+    moved = station.GetOutputPort("ur5e.position_measured").Eval(station.GetMyContextFromRoot(context))
+    assert np.abs(moved - Q_HOME).max() > 1e-4  # the arm follows the plan
+    assert controller.q_command_output_port.Eval(controller.GetMyContextFromRoot(context)).shape == (6,)
+    (clearance,) = monitor.clearances(monitor.GetMyContextFromRoot(context))
+    assert clearance.distance_m > 1.0

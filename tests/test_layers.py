@@ -27,10 +27,18 @@ TOP_MODULES = ("drake_lfd", "drake_lfd.__main__")
 _MODULE_NAME = re.compile(r"^drake_lfd(\.[A-Za-z_][A-Za-z0-9_]*)+$")
 
 
+# An installed drake-lfd carries the repository's models/ and sims/ folders as data
+# packages (drake_lfd.models, drake_lfd.sims: the UR5e model, the scenarios, the bundled
+# libraries and the scripts that rebuild them); they are data, not layers of the code.
+DATA_PACKAGES = ("drake_lfd.models", "drake_lfd.sims")
+
+
 def package_modules() -> dict[str, Path]:
-    """Every module of the package: dotted name -> source file."""
+    """Every module of the package's code: dotted name -> source file."""
     modules = {"drake_lfd": Path(drake_lfd.__file__)}
     for info in pkgutil.walk_packages(drake_lfd.__path__, prefix="drake_lfd."):
+        if any(info.name == data or info.name.startswith(data + ".") for data in DATA_PACKAGES):
+            continue
         modules[info.name] = Path(importlib.util.find_spec(info.name).origin)
     return modules
 

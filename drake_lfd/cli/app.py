@@ -30,6 +30,29 @@ _COMMAND_MODULES = (
 )
 
 
+class HelpFormatter(argparse.HelpFormatter):
+    """argparse's formatter, with each option's default after its help text
+    (``(default: 20)``) unless the text already speaks of its default; options without
+    a default (None, an empty text, or a flag's False) show none."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        default = action.default
+        if (not action.option_strings or default is None or default is False or default == ""
+                or default is argparse.SUPPRESS or "default" in text):
+            return text
+        return f"{text} (default: %(default)s)"
+
+
+def _parsers_of(parser: argparse.ArgumentParser):
+    """``parser`` and every (sub)command parser below it."""
+    yield parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for subparser in action.choices.values():
+                yield from _parsers_of(subparser)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="drake-lfd",
@@ -48,6 +71,8 @@ def build_parser() -> argparse.ArgumentParser:
                 continue
             raise
         module.add_parser(subparsers)
+    for command_parser in _parsers_of(parser):  # every command's --help shows the defaults
+        command_parser.formatter_class = HelpFormatter
     return parser
 
 

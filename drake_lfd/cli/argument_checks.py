@@ -1,7 +1,8 @@
 """Checks of command-line values shared by the ``drake-lfd`` commands.
 
 Each raises an :class:`~drake_lfd.core.errors.InputError` naming the option, so the command
-exits with status 2 and one line.
+exits with status 2 and one line. :func:`prepare_output` is the one place that decides how
+an output path is made ready (missing folders created), for every command.
 """
 
 from __future__ import annotations
@@ -10,7 +11,15 @@ from pathlib import Path
 
 from drake_lfd.core.errors import InputError
 
-__all__ = ['require_at_least', 'require_seed', 'require_folder_of']
+__all__ = ['require_at_least', 'require_seed', 'prepare_output', 'require_folder_of', 'library_help']
+
+
+def library_help(what: str = "library directory") -> str:
+    """Help text of a ``--library LIB`` option, naming the bundled libraries."""
+    from drake_lfd.io.library import bundled_library_names
+
+    names = ", ".join(bundled_library_names()) or "none installed"
+    return f"{what}, or the name of a bundled library ({names})"
 
 
 def require_at_least(value: int, least: int, option: str) -> int:
@@ -27,7 +36,56 @@ def require_seed(value: int, option: str = "--seed") -> int:
     return value
 
 
+def _make_folder(folder: Path, path: Path, option: str) -> None:
+    """``mkdir -p folder``, or one-line refusal naming what is in the way."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        blocking = next((p for p in (folder, *folder.parents) if p.exists() and not p.is_dir()), None)
+        reason = f"{blocking} is a file" if blocking is not None else (error.strerror or str(error))
+        raise InputError(f"cannot create the folder {folder}: {reason}", file=str(path), field=option) from None
+
+
+def prepare_output(path: str | Path | None, option: str, *, folder: bool = False) -> Path | None:
+    """Makes an output path of a command ready to be written, before any work is done.
+
+    The one rule every ``drake-lfd`` command follows for what it writes (docs/cli.rst):
+    missing folders are created (``mkdir -p``): for a file (``--json OUT``, ``--html``,
+    ``train --out POLICY``, ...) the folders it goes into, for a folder (``simulate
+    --figures DIR``, ``paper --out DIR``) the folder itself. It refuses, with an
+    :class:`InputError` (one line, exit 2), only when that cannot be done: a file is
+    asked for where a folder exists, a folder where a file exists, or creating a folder
+    fails (a file in the way, no permission).
+
+    Parameters
+    ----------
+    path : str or Path or None
+        The option's value; None (option not given) and ``-`` (stdout) are left alone.
+    option : str
+        The option, for the error message (``--json``).
+    folder : bool
+        ``path`` names a folder to write into rather than a file.
+
+    Returns
+    -------
+    Path or None
+        ``path`` as a Path (None when it was None or ``-``).
+    """
+    if path is None or str(path) in ("", "-"):
+        return None
+    path = Path(path)
+    if folder:
+        if path.exists() and not path.is_dir():
+            raise InputError("exists and is not a folder", file=str(path), field=option)
+        _make_folder(path, path, option)
+        return path
+    if path.is_dir():
+        raise InputError("is a folder; give the path of the file to write", file=str(path), field=option)
+    _make_folder(path.parent, path, option)
+    return path
+
+
 def require_folder_of(path: str | Path | None, option: str) -> None:
-    """The folder a file will be written into must exist (nothing to check for None)."""
-    if path and not Path(path).resolve().parent.is_dir():
-        raise InputError("folder does not exist", file=str(Path(path).parent), field=option)
+    """The folder a file will be written into exists afterwards: :func:`prepare_output`
+    for a file (kept for older callers)."""
+    prepare_output(path, option)

@@ -1,14 +1,15 @@
-"""``drake-lfd library add|show|remove``: manage a demonstration library from the shell.
+"""``drake-lfd library add|show|copy|remove``: manage a demonstration library from the shell.
 
 A thin front end over :mod:`drake_lfd.io.library` (documented in docs/cli.rst):
 
 - ``library add LIB DEMO.csv --name NAME [--description TEXT]`` reads a UR RTDE joint
   log (or the project's own CSV) and adds it. If ``LIB`` does not exist (or is an empty
   directory) and is not a bundled library's name, a new library is created there, with
-  ``X_tool0_E`` the identity unless ``--tool0-E-p X Y Z`` and/or
-  ``--tool0-E-euler-zyx YAW PITCH ROLL`` (radians; ``pi/2`` or ``90deg`` forms accepted)
-  say otherwise. For an existing library these options must match its frame (they can
-  never change it: that would silently invalidate every feature). ``--keep-all-rows``
+  the end-effector frame ``X_tool0_E`` given by ``--tool0-E-p X Y Z`` and
+  ``--tool0-E-euler-zyx YAW PITCH ROLL`` (radians; ``pi/2`` or ``90deg`` forms
+  accepted); both are required then, so no library gets the identity by accident. An
+  existing library keeps its frame: the options may be left out, and any given must
+  match it (they can never change it: that would silently invalidate every feature). ``--keep-all-rows``
   skips the ``runtime_state`` filter. Warnings about the log (a cut-off last line that
   was dropped) go to stderr after a successful add; a refused add prints one error line
   and leaves the library exactly as it was.
@@ -19,7 +20,10 @@ A thin front end over :mod:`drake_lfd.io.library` (documented in docs/cli.rst):
   translation (in the frame of that sample). ``--json OUT`` also writes the
   machine-readable listing (``-`` writes it to stdout instead of the table). First it
   writes the missing or stale feature caches of a user's library
-  (``Library.write_feature_caches``; reading a library writes nothing by itself).
+  (``Library.write_feature_caches``; reading a library writes nothing by itself). It
+  also names the bundled libraries and where they are installed.
+- ``library copy SRC DIR`` makes an editable copy of a bundled library (or of any
+  library directory) in a new or empty directory (``io.library.copy_library``).
 - ``library remove LIB NAME`` removes one demonstration.
 
 Not for: the library's files and their guarantees (:mod:`drake_lfd.io.library`), the
@@ -39,7 +43,14 @@ from drake_lfd.core.dual_quaternion import axis_angle_from_quaternion
 from drake_lfd.core.errors import EXIT_OK, InputError
 from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
 from drake_lfd.io.demonstration_logs import read_rtde_csv
-from drake_lfd.io.library import END_EFFECTOR_FRAME_TOLERANCE, Library, bundled_library_names
+from drake_lfd.io.library import (
+    END_EFFECTOR_FRAME_TOLERANCE,
+    Library,
+    bundled_library_names,
+    bundled_library_paths,
+    copy_library,
+    tool_frame_options,
+)
 from drake_lfd.io.library_manifest import MANIFEST_NAME, check_demo_name
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
 from drake_lfd.io.yaml_checks import angle_from_text
@@ -52,8 +63,13 @@ __all__ = [
     "library_listing",
     "format_listing",
     "run_show",
+    "run_copy",
     "run_remove",
+    "bundled_libraries_text",
 ]
+
+# What a new library's frame is asked for with (docs/cli.rst, library add).
+IDENTITY_FRAME_OPTIONS = "--tool0-E-p 0 0 0 --tool0-E-euler-zyx 0 0 0"
 
 # Where along the feature ``show`` samples its rotation (fractions of the deltas).
 SUMMARY_FRACTIONS = (("start", 0.0), ("middle", 0.5), ("late", 0.75))
@@ -62,8 +78,9 @@ SUMMARY_FRACTIONS = (("start", 0.0), ("middle", 0.5), ("late", 0.75))
 def add_parser(subparsers):
     parser = subparsers.add_parser(
         "library",
-        help="add, list or remove demonstrations of a library directory",
+        help="add, list, copy or remove demonstrations of a library directory",
         description="Manage a demonstration library (a directory with library.json, demos/, cache/).",
+        epilog=bundled_libraries_text(),
     )
     actions = parser.add_subparsers(dest="library_command", metavar="ACTION", required=True)
 
@@ -72,7 +89,8 @@ def add_parser(subparsers):
         help="add a demonstration (RTDE joint log) to a library",
         description=(
             "Add a demonstration to LIB. LIB is created when it does not exist; its end-effector "
-            "frame X_tool0_E is then the identity unless --tool0-E-p / --tool0-E-euler-zyx are given."
+            "frame X_tool0_E must then be given with both --tool0-E-p and --tool0-E-euler-zyx "
+            f"(E = tool0 is {IDENTITY_FRAME_OPTIONS}). An existing library keeps its frame."
         ),
     )
     add.add_argument("library", metavar="LIB", help="library directory (created if missing)")
@@ -84,13 +102,14 @@ def add_parser(subparsers):
         nargs=3,
         type=float,
         metavar=("X", "Y", "Z"),
-        help="position of E in tool0 (m) for a new library; default 0 0 0",
+        help="position of E in tool0 (m); required for a new library, must match an existing one",
     )
     add.add_argument(
         "--tool0-E-euler-zyx",
         nargs=3,
         metavar=("YAW", "PITCH", "ROLL"),
-        help="orientation of E in tool0, R = Rz Ry Rx (rad; pi/2 or 90deg accepted) for a new library",
+        help="orientation of E in tool0, R = Rz Ry Rx (rad; pi/2 or 90deg accepted; write a negative "
+             "angle as a number or add 2*pi); required for a new library, must match an existing one",
     )
     add.add_argument(
         "--keep-all-rows",
@@ -100,9 +119,23 @@ def add_parser(subparsers):
     add.set_defaults(func=run_add)
 
     show = actions.add_parser("show", help="list the demonstrations and their features")
-    show.add_argument("library", metavar="LIB", help="library directory or bundled library name")
+    show.add_argument("library", metavar="LIB",
+                      help=f"library directory or bundled library name ({', '.join(bundled_library_names())})")
     show.add_argument("--json", metavar="OUT", help="also write the listing as JSON to OUT ('-': stdout)")
     show.set_defaults(func=run_show)
+
+    copy = actions.add_parser(
+        "copy",
+        help="make an editable copy of a bundled library (or any library) in a new directory",
+        description=(
+            "Copy library SRC (a bundled library's name or a library directory) into DIR, which must "
+            "not exist or be empty; the copy is yours to add to and remove from."
+        ),
+        epilog=bundled_libraries_text(),
+    )
+    copy.add_argument("source", metavar="SRC", help="bundled library name or library directory")
+    copy.add_argument("destination", metavar="DIR", help="new (or empty) directory for the copy")
+    copy.set_defaults(func=run_copy)
 
     remove = actions.add_parser("remove", help="remove one demonstration")
     remove.add_argument("library", metavar="LIB", help="library directory")
@@ -115,20 +148,55 @@ def add_parser(subparsers):
 
 
 def _requested_tool_frame(args):
-    """X_tool0_E from the options, or None if neither was given."""
-    if args.tool0_E_p is None and args.tool0_E_euler_zyx is None:
-        return None
-    p = [0.0, 0.0, 0.0] if args.tool0_E_p is None else args.tool0_E_p
-    euler = [0.0, 0.0, 0.0]
+    """The options' X_tool0_E parts: (position or None, euler_zyx or None), checked."""
+    p = None if args.tool0_E_p is None else [float(v) for v in args.tool0_E_p]
+    if p is not None and not all(math.isfinite(v) for v in p):
+        raise InputError(f"{p} is not a finite position", field="--tool0-E-p")
+    euler = None
     if args.tool0_E_euler_zyx is not None:
+        euler = []
         for index, text in enumerate(args.tool0_E_euler_zyx):
             value = angle_from_text(text)
             if value is None or not math.isfinite(value):
                 raise InputError(f"{text!r} is not an angle", field=f"--tool0-E-euler-zyx[{index}]")
-            euler[index] = value
-    if not all(math.isfinite(v) for v in p):
-        raise InputError(f"{p} is not a finite position", field="--tool0-E-p")
+            euler.append(value)
+    return p, euler
+
+
+def _new_library_frame(args, p, euler):
+    """A new library's X_tool0_E: both options are required (no silent identity)."""
+    if p is None or euler is None:
+        missing = " and ".join(
+            name for name, value in (("--tool0-E-p X Y Z", p), ("--tool0-E-euler-zyx YAW PITCH ROLL", euler))
+            if value is None
+        )
+        raise InputError(
+            f"a new library needs its end-effector frame: give {missing} (E on tool0: metres, and "
+            f"R = Rz(yaw) Ry(pitch) Rx(roll)); E = tool0, the identity, is {IDENTITY_FRAME_OPTIONS}; "
+            "the paper scenarios' frame (sims/*.yaml) is --tool0-E-p 0 0 0.2 --tool0-E-euler-zyx 0 pi/2 0",
+            file=args.library,
+            field="X_tool0_E",
+        )
     return rigid_transform_from_euler_zyx(p, euler)
+
+
+def _check_same_frame(library, p, euler):
+    """Options given for an existing library must match its frame, part by part."""
+    ours = library.X_tool0_E
+    differs = False
+    if p is not None:
+        differs |= bool(np.max(np.abs(np.asarray(p) - ours.translation())) > END_EFFECTOR_FRAME_TOLERANCE)
+    if euler is not None:
+        rotation = rigid_transform_from_euler_zyx([0.0, 0.0, 0.0], euler).rotation().matrix()
+        differs |= bool(np.max(np.abs(rotation - ours.rotation().matrix())) > END_EFFECTOR_FRAME_TOLERANCE)
+    if differs:
+        raise InputError(
+            f"the library was recorded with the end-effector frame {tool_frame_options(ours)}, and a "
+            "library's frame never changes; leave the options out to add with that frame, or add to a "
+            "new library directory to record with another",
+            file=library.label,
+            field="X_tool0_E",
+        )
 
 
 def _is_new_library(path_text):
@@ -139,26 +207,20 @@ def _is_new_library(path_text):
 
 
 def run_add(args):
-    requested = _requested_tool_frame(args)
+    p, euler = _requested_tool_frame(args)
     # Everything that can refuse the add runs before the library is touched.
+    new = _is_new_library(args.library)
+    X_tool0_E = _new_library_frame(args, p, euler) if new else None
     check_demo_name(args.name)
     demonstration, warnings = read_rtde_csv(
         args.log, name=args.name, description=args.description, filter_runtime_state=not args.keep_all_rows
     )
-    if _is_new_library(args.library):
-        library = Library.create(args.library, X_tool0_E=requested)
+    if new:
+        library = Library.create(args.library, X_tool0_E=X_tool0_E)
     else:
         library = Library.open(args.library)
-        if requested is not None:
-            difference = np.max(np.abs(requested.GetAsMatrix4() - library.X_tool0_E.GetAsMatrix4()))
-            if difference > END_EFFECTOR_FRAME_TOLERANCE:
-                pose = pose_json_from_rigid_transform(library.X_tool0_E)
-                raise InputError(
-                    f"the library's end-effector frame is p={pose['p']}, q_wxyz={pose['q_wxyz']}; "
-                    "--tool0-E-p/--tool0-E-euler-zyx only choose it for a new library",
-                    file=library.label,
-                    field="X_tool0_E",
-                )
+        if not library.read_only:  # a bundled one is refused for that, with a hint to copy it
+            _check_same_frame(library, p, euler)
     entry = library.add(demonstration, args.name, args.description)
     for warning in warnings:
         print(f"drake-lfd library: warning: {warning}", file=sys.stderr)
@@ -206,10 +268,21 @@ def feature_summary(feature):
     return rows
 
 
+def bundled_libraries_text():
+    """One sentence naming the bundled libraries, where they are installed and how to
+    get an editable copy (``library --help``, ``library show``)."""
+    paths = bundled_library_paths()
+    if not paths:
+        return "No bundled libraries are installed."
+    listed = ", ".join(f"{name} ({path})" for name, path in paths.items())
+    return (f"Bundled libraries (read-only; pass the name as LIB): {listed}. "
+            f"Make an editable copy with: drake-lfd library copy {next(iter(paths))} DIR")
+
+
 def library_listing(library):
     """The ``library show --json`` document (docs/cli.rst), plus optional fields:
-    ``read_only``, and per demonstration ``added`` and ``feature`` (resampled sample
-    count and :func:`feature_summary`)."""
+    ``read_only``, ``directory``, ``bundled_libraries``, and per demonstration ``added``
+    and ``feature`` (resampled sample count and :func:`feature_summary`)."""
     demos = []
     for entry in library.entries:
         feature = library.feature(entry.name)
@@ -227,7 +300,10 @@ def library_listing(library):
     return {
         "library": library.label,
         "X_tool0_E": pose_json_from_rigid_transform(library.X_tool0_E),
+        "X_tool0_E_options": tool_frame_options(library.X_tool0_E),
         "read_only": library.read_only,
+        "directory": str(library.path),
+        "bundled_libraries": [{"name": name, "directory": str(path)} for name, path in bundled_library_paths().items()],
         "demos": demos,
     }
 
@@ -240,11 +316,17 @@ def format_listing(listing):
     """The human-readable table of a :func:`library_listing`, as one string."""
     pose = listing["X_tool0_E"]
     lines = [
-        f"library {listing['library']}" + ("  (bundled, read-only)" if listing["read_only"] else ""),
-        f"X_tool0_E: p = {_format_vector(pose['p'])} m, q_wxyz = {_format_vector(pose['q_wxyz'])}",
+        f"library {listing['library']}" + (
+            f"  (bundled, read-only, installed in {listing['directory']}; editable copy: "
+            f"drake-lfd library copy {listing['library']} DIR)" if listing["read_only"] else ""),
+        f"X_tool0_E: p = {_format_vector(pose['p'])} m, q_wxyz = {_format_vector(pose['q_wxyz'])}"
+        + (f"  ({listing['X_tool0_E_options']})" if "X_tool0_E_options" in listing else ""),
     ]
+    bundled = ", ".join(f"{b['name']} ({b['directory']})" for b in listing.get("bundled_libraries", ()))
+    footer = f"bundled libraries: {bundled}" if bundled else "no bundled libraries installed"
     if not listing["demos"]:
         lines.append("no demonstrations yet")
+        lines.append(footer)
         return "\n".join(lines)
     width = max(4, *(len(demo["name"]) for demo in listing["demos"]))
     lines.append(
@@ -268,6 +350,7 @@ def format_listing(listing):
             )
         if demo["description"]:
             lines.append(" " * (width + 2) + demo["description"])
+    lines.append(footer)
     return "\n".join(lines)
 
 
@@ -284,6 +367,17 @@ def run_show(args):
         except OSError as error:
             raise InputError(f"cannot write: {error.strerror}", file=args.json) from None
     print(format_listing(listing))
+    return EXIT_OK
+
+
+# -------------------------------------------------------------------------------- copy
+
+
+def run_copy(args):
+    copy = copy_library(args.source, args.destination)
+    print(f"copied {args.source} to {copy.label}: {len(copy)} demonstrations, "
+          f"X_tool0_E {tool_frame_options(copy.X_tool0_E)}; add to it with "
+          f"drake-lfd library add {args.destination} DEMO.csv --name NAME")
     return EXIT_OK
 
 

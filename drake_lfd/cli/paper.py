@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
-from drake_lfd.cli.argument_checks import require_at_least, require_seed
-from drake_lfd.core.errors import InputError
+from drake_lfd.cli.argument_checks import prepare_output, require_at_least, require_seed
 
 __all__ = ['add_parser', 'run']
 
@@ -20,9 +17,10 @@ def add_parser(subparsers) -> None:
             "write results.json, report.md, figures and Meshcat recordings into DIR."
         ),
     )
-    parser.add_argument("--out", default="paper_results", metavar="DIR")
-    parser.add_argument("--trials", type=int, default=20, metavar="N")
-    parser.add_argument("--seed", type=int, default=0, metavar="S")
+    parser.add_argument("--out", default="paper_results", metavar="DIR",
+                        help="output folder for report.md, results.json, figures and recordings (created if missing)")
+    parser.add_argument("--trials", type=int, default=20, metavar="N", help="closed-loop trials per task, >= 1")
+    parser.add_argument("--seed", type=int, default=0, metavar="S", help="seeds the training and the trials")
     parser.set_defaults(func=run)
 
 
@@ -33,9 +31,7 @@ def run(args) -> int:
 
     require_at_least(args.trials, 1, "--trials")
     require_seed(args.seed)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError("exists and is not a folder", file=str(out), field="--out")
+    out = prepare_output(args.out, "--out", folder=True)
 
     def log(line):
         print(line, file=sys.stderr, flush=True)

@@ -7,11 +7,12 @@ library's feature caches, plans and prints. Not for: planning itself
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from drake_lfd.cli.argument_checks import require_seed
+from drake_lfd.cli.argument_checks import library_help, prepare_output, require_seed
 from drake_lfd.io.atomic_files import atomic_write_json
 from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, InputError
 from drake_lfd.planning.planner import PLANNERS
@@ -29,24 +30,45 @@ def add_parser(subparsers) -> None:
             "Exit 3 with the uncovered segments when the library cannot cover the task."
         ),
     )
-    parser.add_argument("task", metavar="TASK.yaml")
-    parser.add_argument("--library", required=True, metavar="LIB", help="library directory or bundled name")
-    parser.add_argument("--planner", choices=PLANNERS, default="exact")
+    parser.add_argument("task", metavar="TASK.yaml", help="the task file (docs/task_files.rst)")
+    parser.add_argument("--library", required=True, metavar="LIB",
+                        help=library_help() + "; its X_tool0_E must equal the task's")
+    parser.add_argument("--planner", choices=PLANNERS, default="exact",
+                        help="exact shortest-path planner, or the greedy walk on a Q-policy")
     parser.add_argument("--policy", metavar="POLICY", help="Q-policy file (needed by --planner q)")
-    parser.add_argument("--seed", type=int, default=0, help="draws the trial's ranged positions")
-    parser.add_argument("--json", metavar="OUT", help="write the plan as JSON")
+    parser.add_argument("--allow-policy-mismatch", action="store_true",
+                        help="plan with a policy trained on other demonstrations than the library's "
+                             "(default: refused; with this, a warning)")
+    parser.add_argument("--seed", type=int, default=0, metavar="S",
+                        help="draws the trial's ranged positions; seeds the Q-planner's refinement")
+    parser.add_argument("--json", metavar="OUT",
+                        help="write the plan or the request as JSON (missing folders are created)")
     parser.set_defaults(func=run)
 
 
-def load_policy_for(args):
-    """The Q-policy named by ``--policy`` (None for the exact planner)."""
-    from drake_lfd.io.policy_files import load_policy
+def load_policy_for(args, library=None):
+    """The Q-policy named by ``--policy`` (None for the exact planner).
+
+    With ``library``, the policy is checked against its demonstrations
+    (:func:`~drake_lfd.io.policy_files.check_policy_library`): one trained on other
+    demonstrations is refused, or with ``--allow-policy-mismatch`` used with a warning
+    on stderr."""
+    from drake_lfd.io.library import library_features
+    from drake_lfd.io.policy_files import check_policy_library, load_policy
 
     if args.planner != "q":
         return None
     if not args.policy:
         raise InputError("--planner q needs --policy POLICY (train one with drake-lfd train)", field="--policy")
-    return load_policy(args.policy)
+    policy = load_policy(args.policy)
+    if library is not None:
+        warning = check_policy_library(
+            policy, library_features(library), file=args.policy, library=library.label,
+            allow_mismatch=getattr(args, "allow_policy_mismatch", False),
+        )
+        if warning:
+            print(f"drake-lfd {args.command}: warning: {args.policy}: {warning}", file=sys.stderr)
+    return policy
 
 
 def run(args) -> int:
@@ -57,10 +79,11 @@ def run(args) -> int:
     from drake_lfd.io.task_files import load_task
 
     require_seed(args.seed)
+    prepare_output(args.json, "--json")
     task = load_task(args.task)
     library = Library.open(args.library)
     check_end_effector_frame(library, task.X_tool0_E, file=args.task)
-    policy = load_policy_for(args)
+    policy = load_policy_for(args, library)
     trial = draw_trial(task, args.seed)
     library.write_feature_caches()
     result = plan_task(trial, library_features(library), planner=args.planner, policy=policy, seed=args.seed)

@@ -11,10 +11,9 @@ from __future__ import annotations
 
 import math
 import sys
-from pathlib import Path
 
+from drake_lfd.cli.argument_checks import prepare_output
 from drake_lfd.io.demonstration_logs import write_rtde_csv
-from drake_lfd.core.errors import InputError
 from drake_lfd.io.guidance_scripts import load_guidance_script
 from drake_lfd.diagrams.kinesthetic import record_demonstration
 
@@ -33,23 +32,15 @@ def add_parser(subparsers) -> None:
         ),
     )
     parser.add_argument("script", metavar="SCRIPT.yaml", help="guidance script (YAML)")
-    parser.add_argument("--out", required=True, metavar="DEMO.csv", help="joint log to write (replaced atomically)")
+    parser.add_argument("--out", required=True, metavar="DEMO.csv",
+                        help="joint log to write (replaced atomically; missing folders are created)")
     parser.add_argument("--quiet", action="store_true", help="do not print progress")
     parser.set_defaults(func=run)
 
 
-def _check_output_path(out: Path):
-    if out.is_dir():
-        raise InputError("is a directory; give the path of the CSV to write", file=out, field="--out")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise InputError(f"the directory {parent} does not exist", file=out, field="--out")
-
-
 def run(args) -> int:
     script = load_guidance_script(args.script)
-    out = Path(args.out)
-    _check_output_path(out)
+    out = prepare_output(args.out, "--out")
 
     def progress(t, duration):
         print(f"  simulated {t:.1f} / {duration:.1f} s", file=sys.stderr, flush=True)

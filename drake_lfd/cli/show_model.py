@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
+from drake_lfd.cli.argument_checks import prepare_output
 from drake_lfd.core.errors import InputError
 
 __all__ = ['add_parser', 'run']
@@ -17,10 +16,11 @@ def add_parser(subparsers) -> None:
         help="write a standalone Meshcat HTML of the UR5e moving through configurations",
         description="Write a self-contained Meshcat HTML animation of drake-lfd's UR5e model.",
     )
-    parser.add_argument("--out", default="ur5e.html", help="output HTML file (default ur5e.html)")
+    parser.add_argument("--out", default="ur5e.html", metavar="OUT",
+                        help="output HTML file (missing folders are created)")
     parser.add_argument(
         "--q", nargs=6, type=float, action="append", metavar="Q",
-        help="a joint configuration in radians (repeat for keyframes); default: a showcase",
+        help="a joint configuration in radians (repeat for keyframes); without it, a showcase",
     )
     parser.set_defaults(func=run)
 
@@ -31,9 +31,7 @@ def run(args) -> int:
     q_keyframes = SHOWCASE_CONFIGURATIONS if not args.q else np.array(args.q)
     if not np.all(np.isfinite(q_keyframes)):
         raise InputError("joint angles must be finite numbers", field="--q")
-    out = Path(args.out)
-    if not out.parent.is_dir():
-        raise InputError("folder does not exist", file=str(out.parent), field="--out")
+    out = prepare_output(args.out, "--out")
     write_configurations_html(out, q_keyframes)
     print(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB); open it in a browser")
     return 0

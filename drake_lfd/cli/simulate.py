@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from drake_lfd.cli.argument_checks import require_at_least, require_folder_of, require_seed
+from drake_lfd.cli.argument_checks import library_help, prepare_output, require_at_least, require_seed
 from drake_lfd.io.atomic_files import atomic_write_json
 from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, InputError
 from drake_lfd.planning.planner import PLANNERS
@@ -28,16 +28,25 @@ def add_parser(subparsers) -> None:
             "safety shells, and judge each run (docs/method.rst, Closed loop and success)."
         ),
     )
-    parser.add_argument("task", metavar="TASK.yaml")
-    parser.add_argument("--library", required=True, metavar="LIB")
-    parser.add_argument("--planner", choices=PLANNERS, default="exact")
+    parser.add_argument("task", metavar="TASK.yaml", help="the task file (docs/task_files.rst)")
+    parser.add_argument("--library", required=True, metavar="LIB",
+                        help=library_help() + "; its X_tool0_E must equal the task's")
+    parser.add_argument("--planner", choices=PLANNERS, default="exact",
+                        help="exact shortest-path planner, or the greedy walk on a Q-policy")
     parser.add_argument("--policy", metavar="POLICY", help="Q-policy file (needed by --planner q)")
-    parser.add_argument("--trials", type=int, default=1, metavar="N")
-    parser.add_argument("--seed", type=int, default=0, metavar="S")
-    parser.add_argument("--json", metavar="OUT", help="write the results as JSON")
-    parser.add_argument("--html", metavar="REC.html", help="write a Meshcat recording of the first trial")
+    parser.add_argument("--allow-policy-mismatch", action="store_true",
+                        help="plan with a policy trained on other demonstrations than the library's "
+                             "(default: refused; with this, a warning)")
+    parser.add_argument("--trials", type=int, default=1, metavar="N", help="number of trials, >= 1")
+    parser.add_argument("--seed", type=int, default=0, metavar="S",
+                        help="the first trial's seed (trial i, from 0, uses S + i)")
+    parser.add_argument("--json", metavar="OUT",
+                        help="write the results, every failure reason in full, as JSON (missing folders are created)")
+    parser.add_argument("--html", metavar="REC.html",
+                        help="write a Meshcat recording of the first trial that runs (missing folders are created)")
     parser.add_argument("--figures", metavar="DIR",
-                        help="write figures of the first trial that ran: SE(3) plan, joints, distance to shells")
+                        help="write figures of the first trial that ran into DIR (created if missing): "
+                             "SE(3) plan, joints, distance to shells")
     parser.set_defaults(func=run)
 
 
@@ -50,19 +59,18 @@ def run(args) -> int:
 
     require_at_least(args.trials, 1, "--trials")
     require_seed(args.seed)
-    require_folder_of(args.json, "--json")
-    require_folder_of(args.html, "--html")
-    if args.figures and not Path(args.figures).is_dir():
-        raise InputError("folder does not exist", file=args.figures, field="--figures")
+    prepare_output(args.json, "--json")
+    prepare_output(args.html, "--html")
+    prepare_output(args.figures, "--figures", folder=True)
     task = load_task(args.task)
     library = Library.open(args.library)
     check_end_effector_frame(library, task.X_tool0_E, file=args.task)
-    policy = load_policy_for(args)
+    policy = load_policy_for(args, library)
     bar = ProgressBar("trials", args.trials)
     lines = []
 
     def progress(done, total, outcome):
-        lines.append(trial_summary_line(outcome))
+        lines.append(trial_summary_line(outcome, task))
         bar.update(done, "ok" if outcome.success else "failed")
 
     library.write_feature_caches()

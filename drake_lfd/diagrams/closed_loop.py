@@ -45,6 +45,7 @@ from drake_lfd.core.tasks import ConcreteTask
 from drake_lfd.core.timing import TimedPlan, time_plan
 from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.diagrams.pipeline import Pipeline, build_pipeline
+from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.initial_ik import InitialConfiguration, solve_initial_configuration
 from drake_lfd.robot.kinematics import NUM_JOINTS, UR5eKinematics
@@ -366,7 +367,7 @@ class ClosedLoopRunner:
         if recording:
             visualizer.StopRecording()
             visualizer.PublishRecording()
-            Path(record_html).write_text(self.meshcat.StaticHtml())
+            atomic_write_bytes(Path(record_html), self.meshcat.StaticHtml().encode())
 
         log = pipeline.logger.FindLog(context)
         data = log.data()

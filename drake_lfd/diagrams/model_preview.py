@@ -15,6 +15,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.systems.framework import DiagramBuilder
 
+from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.robot.kinematics import add_ur5e
 
 __all__ = ['SHOWCASE_CONFIGURATIONS', 'write_configurations_html']
@@ -77,5 +78,5 @@ def write_configurations_html(
     visualizer.StopRecording()
     visualizer.PublishRecording()
     path = Path(path)
-    path.write_text(meshcat.StaticHtml())
+    atomic_write_bytes(path, meshcat.StaticHtml().encode())
     return path

@@ -38,7 +38,7 @@ from drake_lfd.planning.planner import build_problem, plan_task
 from drake_lfd.io.policy_files import save_policy
 from drake_lfd.planning.q_learning import episodes_to_steady
 from drake_lfd.experiments.rederive import rederive_run
-from drake_lfd.experiments.simulation import composition_counts, run_trials, write_trial_figures
+from drake_lfd.experiments.simulation import composition_counts, run_trials, shorten_reason, write_trial_figures
 from drake_lfd.experiments.table5 import compare as compare_table5
 from drake_lfd.core.tasks import draw_trial
 from drake_lfd.io.task_files import load_task
@@ -68,13 +68,18 @@ def _drake_version() -> str:
         return "unknown"
 
 
+def _reasons(outcome) -> str:
+    """Every failure reason of a trial, each shortened for the log (results.json keeps them whole)."""
+    return "; ".join(shorten_reason(reason) for reason in outcome.failures)
+
+
 def _task_results(name, task, features, policy, trials, seed, out, log):
     """Runs the trials of one task; figures and a recording of the first trial."""
     recording = out / f"{name}.html"
     outcomes, wall = run_trials(
         task, features, trials=trials, seed=seed, planner="q", policy=policy, record_html=recording,
         progress=lambda done, total, o: log(f"  {name} trial {done}/{total}: "
-                                            f"{'success' if o.success else 'FAILED ' + '; '.join(o.failures[:2])}"),
+                                            f"{'success' if o.success else 'FAILED ' + _reasons(o)}"),
     )
     first = next((o for o in outcomes if o.run is not None), None)
     figures = write_trial_figures(task, first, out, name) if first is not None else {}

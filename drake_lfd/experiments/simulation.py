@@ -45,6 +45,9 @@ __all__ = [
     'clearance_over_time',
     'write_trial_figures',
     'trial_summary_line',
+    'SUMMARY_REASON_CHARACTERS',
+    'shorten_reason',
+    'describe_boxes',
 ]
 
 
@@ -235,9 +238,50 @@ def write_trial_figures(task: Task, outcome: TrialOutcome, out: Path, prefix: st
     return figures
 
 
-def trial_summary_line(outcome: TrialOutcome) -> str:
-    verdict = "success" if outcome.success else "FAILED: " + "; ".join(outcome.failures[:2])
+#: Longest failure reason :func:`trial_summary_line` prints in full (the JSON keeps every
+#: reason whole): the judge's reasons (a penetration with its depth and time, about 110
+#: characters) fit; longer ones (an unreachable con_1, a demonstration request) are cut.
+SUMMARY_REASON_CHARACTERS = 120
+
+
+def shorten_reason(reason: str, limit: int = SUMMARY_REASON_CHARACTERS) -> str:
+    """``reason`` cut to at most ``limit`` characters, ending in ``...`` when cut."""
+    reason = " ".join(str(reason).split())
+    return reason if len(reason) <= limit else reason[:limit - 3].rstrip() + "..."
+
+
+def _count(number: int, noun: str) -> str:
+    return f"{number} {noun}" + ("" if number == 1 else "s")
+
+
+def describe_boxes(task: Task | None) -> str:
+    """``"1 obstacle, 1 shell"``, or ``"no obstacles"`` for a task without boxes."""
+    if task is None or not (task.obstacles or task.safety_shells):
+        return "no obstacles"
+    parts = []
+    if task.obstacles:
+        parts.append(_count(len(task.obstacles), "obstacle"))
+    if task.safety_shells:
+        parts.append(_count(len(task.safety_shells), "shell"))
+    return ", ".join(parts)
+
+
+def trial_summary_line(outcome: TrialOutcome, task: Task | None = None) -> str:
+    """One console line per trial: composition, closest approach to the boxes, and the
+    verdict with every failure reason (each cut to :data:`SUMMARY_REASON_CHARACTERS`).
+
+    ``task`` (or, without it, the trial's planned task) says which obstacles and shells
+    the scene has, so a trial that did not run reads ``no run (1 obstacle, 1 shell)``.
+    """
+    if outcome.success:
+        verdict = "success"
+    else:
+        verdict = "FAILED: " + ("; ".join(shorten_reason(f) for f in outcome.failures) or "no reason given")
     composition = outcome.composition_label or "no plan"
-    distance = outcome.run.min_shell_distance_m if outcome.run is not None else np.nan
-    clearance = f"min distance {distance * 100:.1f} cm" if np.isfinite(distance) else "no obstacles"
+    scene_task = task if task is not None else (outcome.plan.task if outcome.plan is not None else None)
+    if outcome.run is None:
+        clearance = f"no run ({describe_boxes(scene_task)})"
+    else:
+        distance = outcome.run.min_shell_distance_m
+        clearance = f"min distance {distance * 100:.1f} cm" if np.isfinite(distance) else describe_boxes(scene_task)
     return f"trial {outcome.trial} (seed {outcome.seed}): {composition}; {clearance}; {verdict}"

@@ -30,8 +30,9 @@ do not run two ``add``/``remove`` at once on one library.
 
 Names: ``Library.open`` takes a path to an existing directory, else the name of a
 library bundled with drake-lfd (``drake_lfd/sims/libraries/<name>/`` when installed,
-``sims/libraries/<name>/`` in a checkout). Bundled libraries opened by name are
-read-only. Demonstration names match ``[A-Za-z0-9_-]+`` and are unique ignoring case (so
+``sims/libraries/<name>/`` in a checkout; :func:`bundled_library_paths` says where).
+Bundled libraries opened by name are read-only; :func:`copy_library` makes an editable
+copy of one (or of any library) in a new directory, atomically. Demonstration names match ``[A-Za-z0-9_-]+`` and are unique ignoring case (so
 their log files do not collide on case-insensitive file systems).
 
 Not for: the manifest's format (``library_manifest.py``), the cache files
@@ -42,6 +43,9 @@ comparing features (``similarity.py``), the command line (``cli/library.py``).
 from __future__ import annotations
 
 import datetime
+import os
+import shutil
+import uuid
 from pathlib import Path
 from typing import NamedTuple
 
@@ -71,14 +75,17 @@ from drake_lfd.io.library_manifest import (
     read_manifest,
     write_manifest,
 )
-from drake_lfd.io.pose_records import pose_json_from_rigid_transform
+from drake_lfd.io.pose_records import angle_text, euler_zyx_from_rigid_transform, number_text, pose_yaml_text
 from drake_lfd.robot.kinematics import UR5eKinematics, dual_quaternions_from_demonstration
 
 __all__ = [
     "END_EFFECTOR_FRAME_TOLERANCE",
     "MIN_MOTION_LENGTH",
     "bundled_library_names",
+    "bundled_library_paths",
+    "tool_frame_options",
     "Library",
+    "copy_library",
     "library_features",
     "check_end_effector_frame",
 ]
@@ -104,6 +111,31 @@ def bundled_library_names():
         if directory.is_dir():
             names.update(p.name for p in directory.iterdir() if (p / MANIFEST_NAME).is_file())
     return sorted(names)
+
+
+def bundled_library_paths():
+    """Name -> directory of each bundled library, where ``Library.open(name)`` finds it
+    (the first of :func:`~drake_lfd.core.resources.bundled_library_directories` that
+    has it), sorted by name."""
+    paths = {}
+    for directory in bundled_library_directories():
+        if directory.is_dir():
+            for candidate in sorted(directory.iterdir()):
+                if (candidate / MANIFEST_NAME).is_file() and candidate.name not in paths:
+                    paths[candidate.name] = candidate.resolve()
+    return dict(sorted(paths.items()))
+
+
+def tool_frame_options(X_tool0_E):
+    """The ``library add`` options that choose the end-effector frame ``X_tool0_E``, as
+    one would type them: ``--tool0-E-p 0 0 0.2 --tool0-E-euler-zyx 0 pi/2 0``.
+
+    Angles are exact multiples of pi where they are (a negative one plus 2 pi, since
+    argparse takes ``-pi/2`` for an option), else radians; both read back within
+    :data:`END_EFFECTOR_FRAME_TOLERANCE`."""
+    p = " ".join(number_text(v) for v in X_tool0_E.translation())
+    euler = " ".join(angle_text(v, non_negative=True) for v in euler_zyx_from_rigid_transform(X_tool0_E))
+    return f"--tool0-E-p {p} --tool0-E-euler-zyx {euler}"
 
 
 class _FeatureRecord(NamedTuple):
@@ -366,8 +398,10 @@ class Library:
     def _check_writable(self):
         if self.read_only:
             raise InputError(
-                "is a bundled library and read-only; create your own with "
-                "'drake-lfd library add DIRECTORY ...' (or copy this one to a directory)",
+                f"is a bundled library and read-only (installed in {self.path}); make an editable copy "
+                f"with 'drake-lfd library copy {self.label} DIR' and use DIR, or start your own library "
+                "with 'drake-lfd library add DIR DEMO.csv --name NAME --tool0-E-p X Y Z "
+                "--tool0-E-euler-zyx YAW PITCH ROLL'",
                 file=self.label,
             )
 
@@ -467,6 +501,65 @@ class Library:
         fsync_directory(self.path / DEMOS_DIRECTORY)
 
 
+def copy_library(source, destination, **feature_parameters):
+    """Copies a library (a bundled one, typically) into a new directory, editable.
+
+    The copy has the source's manifest (frame, entries, order, ``added`` times), its
+    joint logs and fresh feature caches. It is built in a temporary directory beside
+    ``destination`` and renamed into place, so ``destination`` never holds half a copy.
+
+    Parameters
+    ----------
+    source : Library, str or Path
+        A library, or what :meth:`Library.open` takes (a directory or a bundled name).
+    destination : str or Path
+        A directory that does not exist (its parents are created) or is empty.
+    **feature_parameters
+        As for :meth:`Library.open`.
+
+    Returns
+    -------
+    copy : Library
+        The copy, opened from ``destination`` (not read-only).
+
+    Raises
+    ------
+    InputError
+        ``destination`` is a file or a non-empty directory; the source cannot be opened
+        or one of its joint logs is damaged. Nothing is left behind then.
+    """
+    library = source if isinstance(source, Library) else Library.open(source, **feature_parameters)
+    destination = Path(destination)
+    if destination.exists():
+        if not destination.is_dir():
+            raise InputError("exists and is not a directory", file=destination)
+        if any(destination.iterdir()):
+            raise InputError("exists and is not empty; choose a new directory for the copy", file=destination)
+    parent = destination.absolute().parent
+    _make_directory(parent)
+    staging = parent / f".{destination.name}.copy-{uuid.uuid4().hex[:12]}"
+    staging.mkdir()
+    try:
+        _make_directory(staging / DEMOS_DIRECTORY)
+        _make_directory(staging / CACHE_DIRECTORY)
+        for entry in library.entries:
+            library.demonstration(entry.name)  # refuses a damaged log before copying it
+            target = staging / entry.file
+            _make_directory(target.parent)
+            atomic_write_bytes(target, (library.path / entry.file).read_bytes())
+        write_manifest(staging, library._manifest)
+        Library._load(staging, label=str(staging), read_only=False, **feature_parameters).write_feature_caches()
+        fsync_directory(staging)
+        if destination.exists():
+            destination.rmdir()  # empty, checked above
+        os.rename(staging, destination)
+        fsync_directory(parent)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return Library.open(destination, **feature_parameters)
+
+
 def check_end_effector_frame(library, X_tool0_E_task, file=None):
     """Refuses to plan a task whose end-effector frame differs from the library's.
 
@@ -486,24 +579,22 @@ def check_end_effector_frame(library, X_tool0_E_task, file=None):
     ------
     InputError
         If any entry of the 4x4 matrices differs by more than
-        :data:`END_EFFECTOR_FRAME_TOLERANCE`.
+        :data:`END_EFFECTOR_FRAME_TOLERANCE`. The message names both fixes with the
+        values to type: the ``library add`` options that record demonstrations for the
+        task's frame (:func:`tool_frame_options`), and the task's ``X_tool0_E`` that
+        matches the library.
     """
     difference = np.max(np.abs(library.X_tool0_E.GetAsMatrix4() - X_tool0_E_task.GetAsMatrix4()))
     if difference > END_EFFECTOR_FRAME_TOLERANCE:
-        task = pose_json_from_rigid_transform(X_tool0_E_task)
-        ours = pose_json_from_rigid_transform(library.X_tool0_E)
         raise InputError(
-            f"the task's end-effector frame (p={_short(task['p'])}, q_wxyz={_short(task['q_wxyz'])}) "
-            f"differs from the one library {library.label} was recorded with "
-            f"(p={_short(ours['p'])}, q_wxyz={_short(ours['q_wxyz'])}); use a library recorded "
-            "with this tool frame or change the task's X_tool0_E",
+            f"the task's end-effector frame {pose_yaml_text(X_tool0_E_task)} differs from the one "
+            f"library {library.label} was recorded with, {pose_yaml_text(library.X_tool0_E)}; "
+            "record the demonstrations for the task's frame into a new library with "
+            f"'drake-lfd library add NEWLIB DEMO.csv --name NAME {tool_frame_options(X_tool0_E_task)}', "
+            f"or set the task's X_tool0_E to {pose_yaml_text(library.X_tool0_E)}",
             file=file,
             field="X_tool0_E",
         )
-
-
-def _short(values):
-    return "[" + ", ".join(f"{v:.6g}" for v in values) + "]"
 
 
 def library_features(library: Library) -> dict[str, Feature]:

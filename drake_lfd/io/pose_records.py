@@ -6,6 +6,10 @@ tools. This module converts between it and pydrake's ``RigidTransform`` and chec
 a user's file holds: finite numbers and a quaternion of unit norm (within 1e-6, then
 normalised). Problems are :class:`~drake_lfd.core.errors.InputError` naming file and field.
 
+For messages that tell a user what to type, :func:`angle_text`, :func:`number_text` and
+:func:`pose_yaml_text` write numbers, angles (``pi/2`` where the angle is an exact
+multiple of pi) and poses the way task files and options read them.
+
 Not for: task files (they write orientations as ``euler_zyx``, see ``tasks.py``) or dual
 quaternions (``dual_quaternion.py``).
 """
@@ -16,7 +20,7 @@ import math
 
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
-from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from drake_lfd.core.errors import InputError
 
@@ -25,6 +29,10 @@ __all__ = [
     'POSE_KEYS',
     'pose_json_from_rigid_transform',
     'rigid_transform_from_pose_json',
+    'number_text',
+    'angle_text',
+    'euler_zyx_from_rigid_transform',
+    'pose_yaml_text',
 ]
 
 # A stored quaternion may be off unit norm by rounding in whatever wrote it; more than
@@ -120,3 +128,49 @@ def rigid_transform_from_pose_json(value, *, file=None, field=None):
         )
     q = q / norm
     return RigidTransform(RotationMatrix(Quaternion(q)), p)
+
+
+# An angle this close to a multiple of pi / d (d below) is written as that multiple.
+_PI_MULTIPLE_TOLERANCE = 1e-10
+_PI_DENOMINATORS = (1, 2, 3, 4, 6, 8, 12)
+
+
+def number_text(value):
+    """A number as a user would type it: fixed point, at most 12 decimals, no ``-0``
+    and no exponent (so that a negative value is still read as a number by argparse)."""
+    text = f"{float(value):.12f}".rstrip("0").rstrip(".")
+    return "0" if text in ("", "-0") else text
+
+
+def angle_text(value, *, non_negative=False):
+    """An angle in radians as a user would type it: ``pi/2``, ``-3*pi/4``, ``0`` when it
+    is a multiple of pi / d (d in 1, 2, 3, 4, 6, 8, 12) within 1e-10, else
+    :func:`number_text`. ``non_negative`` writes a negative multiple of pi plus 2 pi
+    (``3*pi/2`` for ``-pi/2``: the same rotation), for command-line options, where
+    argparse would take ``-pi/2`` for an option."""
+    value = float(value)
+    for denominator in _PI_DENOMINATORS:
+        k = round(value * denominator / math.pi)
+        if abs(value - k * math.pi / denominator) > _PI_MULTIPLE_TOLERANCE:
+            continue
+        if k == 0:
+            return "0"
+        if non_negative and k < 0:
+            k += 2 * denominator
+        coefficient = {1: "", -1: "-"}.get(k, f"{k}*")
+        return f"{coefficient}pi" + (f"/{denominator}" if denominator != 1 else "")
+    return number_text(value)
+
+
+def euler_zyx_from_rigid_transform(X):
+    """``[yaw, pitch, roll]`` of a pose's rotation, ``R = Rz(yaw) Ry(pitch) Rx(roll)``
+    (pitch in [-pi/2, pi/2]; at pitch +-pi/2 one of the splits of yaw and roll)."""
+    rpy = RollPitchYaw(X.rotation())
+    return [float(rpy.yaw_angle()), float(rpy.pitch_angle()), float(rpy.roll_angle())]
+
+
+def pose_yaml_text(X):
+    """A pose in the task files' form, ``{p: [0, 0, 0.2], euler_zyx: [0, pi/2, 0]}``."""
+    p = ", ".join(number_text(v) for v in X.translation())
+    euler = ", ".join(angle_text(v) for v in euler_zyx_from_rigid_transform(X))
+    return f"{{p: [{p}], euler_zyx: [{euler}]}}"

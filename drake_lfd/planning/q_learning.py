@@ -50,7 +50,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -67,6 +67,7 @@ __all__ = [
     "DEFAULT_REFINE_EPISODES",
     "GENERAL_PRIOR_WEIGHT",
     "episodes_to_steady",
+    "never_steady",
     "train",
     "greedy_walk",
     "plan_q",
@@ -110,6 +111,9 @@ class QPolicy:
     training_episodes: int = 0
     # Q of actions found illegal in training, keyed "state key|demo|span" (Eq. 31's -inf).
     illegal_values: dict[str, float] = dataclasses.field(default_factory=dict)
+    # Demonstration name -> hash of the feature it was trained with
+    # (training.feature_hash); None when unknown (policy files written before it was kept).
+    library_feature_hashes: dict[str, str] | None = None
 
     def value(self, key: str) -> float:
         return 0.0 if key == GOAL_KEY else self.values.get(key, 0.0)
@@ -146,6 +150,17 @@ def episodes_to_steady(curve: np.ndarray, window: int = 10, tolerance: float = 0
     band = tolerance * (curve.max() - curve.min()) + 1e-9
     outside = np.flatnonzero(np.abs(curve - final) > band)
     return 0 if len(outside) == 0 else int(outside[-1] + 1)
+
+
+def never_steady(curve: np.ndarray, window: int = 10, tolerance: float = 0.05) -> bool:
+    """Whether the curve never settles within its episodes: its final episode is itself
+    the last one outside the band of :func:`episodes_to_steady` (farther than
+    ``tolerance`` times the range from the mean of the last ``window`` episodes), so
+    :func:`episodes_to_steady` would equal the number of episodes. A curve that keeps
+    changing to its end, or that alternates between values at the end, is never steady
+    (however small the values' differences); an empty curve is steady."""
+    curve = np.asarray(curve, dtype=float)
+    return len(curve) > 0 and episodes_to_steady(curve, window, tolerance) == len(curve)
 
 
 class _GeneralValues:
@@ -272,9 +287,12 @@ def train(
     policy: QPolicy | None = None,
     progress: Callable[[int, int], None] | None = None,
     after_episode: Callable[[int, QPolicy], None] | None = None,
+    library_feature_hashes: Mapping[str, str] | None = None,
 ) -> TrainingResult:
     """Algorithm 1 on several tasks, episodes interleaved across tasks.
 
+    ``library_demos`` (and ``library_feature_hashes``, name -> feature hash, if known)
+    record in the policy what it was trained with.
     ``policy`` warm-starts from a trained table (its values are copied, not modified).
     ``progress(done, total)`` is called after each episode round;
     ``after_episode(done, policy)`` too, with the policy being learned (to evaluate it;
@@ -288,6 +306,7 @@ def train(
         library_demos=list(library_demos),
         training_episodes=(policy.training_episodes if policy else 0),
         illegal_values=dict(policy.illegal_values) if policy else {},
+        library_feature_hashes=None if library_feature_hashes is None else dict(library_feature_hashes),
     )
     mdps = [CompositionMDP(problem, parameters.penalty) for problem in problems]
     keys = [_IllegalKeys(mdp, learned.library_demos) for mdp in mdps]

@@ -9,12 +9,17 @@ held-out chained tasks: 4.0 % above the optimum with 20 chained training tasks, 
 without). The default is the paper's training set (no chained tasks): plan-time
 refinement (``q_learning.greedy_walk``) closes the gap either way (0.0 %).
 
+The policy records what it was trained with: the demonstrations' names and a hash of
+each one's feature (:func:`feature_hash`), so a policy used with another library can be
+told apart (``io/policy_files.check_policy_library``).
+
 Not for: the learning rule itself (``q_learning.py``), policy files
 (``io/policy_files.py``) or plotting (``experiments/figures.py``).
 """
 
 from __future__ import annotations
 
+import hashlib
 from typing import Callable, Mapping
 
 import numpy as np
@@ -25,6 +30,29 @@ from drake_lfd.planning.planner import build_problem
 from drake_lfd.planning.q_learning import QLearningParameters, QPolicy, TrainingResult, train
 from drake_lfd.planning.random_tasks import chained_task, random_training_task
 from drake_lfd.core.similarity import Tolerances
+
+
+# Feature arrays are rounded to this many decimals before hashing, so the last bits of
+# a recomputation (another machine's floating point) do not change the hash.
+FEATURE_HASH_DECIMALS = 9
+
+
+def feature_hash(feature: Feature) -> str:
+    """The sha256 (hex) of a feature's ``rotations`` and ``translations`` arrays (shapes
+    included, values rounded to :data:`FEATURE_HASH_DECIMALS` decimals, little-endian
+    float64): equal for the same demonstration with the same tool frame and feature
+    parameters, different when any of those changed."""
+    digest = hashlib.sha256()
+    for array in (feature.rotations, feature.translations):
+        values = np.round(np.asarray(array, dtype=np.float64), FEATURE_HASH_DECIMALS) + 0.0  # no -0.0
+        digest.update(repr(values.shape).encode())
+        digest.update(values.astype("<f8").tobytes())
+    return digest.hexdigest()
+
+
+def feature_hashes(features: Mapping[str, Feature]) -> dict[str, str]:
+    """Name -> :func:`feature_hash`, in the library's order."""
+    return {name: feature_hash(feature) for name, feature in features.items()}
 
 
 def random_training_problems(
@@ -42,6 +70,9 @@ __all__ = [
     "DEFAULT_CHAINED_TASKS",
     "CHAINED_PERTURBATION_DEG",
     "CHAINED_PERTURBATION_M",
+    "FEATURE_HASH_DECIMALS",
+    "feature_hash",
+    "feature_hashes",
     "random_training_problems",
     "chained_training_problems",
     "train_on_random_tasks",
@@ -94,4 +125,5 @@ def train_on_random_tasks(
     return train(
         problems, library_demos=list(features), parameters=parameters, seed=seed,
         policy=warm_start, progress=progress, after_episode=after_episode,
+        library_feature_hashes=feature_hashes(features),
     )

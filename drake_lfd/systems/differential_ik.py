@@ -206,6 +206,23 @@ class DifferentialIKController(LeafSystem):
         self.q_command_output_port = self.DeclareStateOutputPort("q_command", self._command_state)
 
     @staticmethod
+    def AddToBuilder(*, builder, plant: MultibodyPlant, model: ModelInstanceIndex, frame_E: Frame,
+                     X_WE_desired_output_port, V_WE_desired_output_port, q_measured_output_port,
+                     q_command_input_port=None, name: str = "differential_ik",
+                     **kwargs) -> "DifferentialIKController":
+        """Adds a controller named ``name`` fed by the desired pose, velocity and measured
+        positions; connects its command to ``q_command_input_port`` when given.
+        ``kwargs`` are the constructor's (``time_step``, ``method``, ...)."""
+        controller = builder.AddNamedSystem(
+            name, DifferentialIKController(plant=plant, model=model, frame_E=frame_E, **kwargs))
+        builder.Connect(X_WE_desired_output_port, controller.X_WE_desired_input_port)
+        builder.Connect(V_WE_desired_output_port, controller.V_WE_desired_input_port)
+        builder.Connect(q_measured_output_port, controller.q_measured_input_port)
+        if q_command_input_port is not None:
+            builder.Connect(controller.q_command_output_port, q_command_input_port)
+        return controller
+
+    @staticmethod
     def _position_indices(plant, joints):
         return np.array(sorted(j.position_start() + k for j in joints for k in range(j.num_positions())))
 

@@ -130,6 +130,17 @@ class ShellMonitor(LeafSystem):
             # update would run after the plant's step and see the next state.)
             self.DeclarePeriodicUnrestrictedUpdateEvent(self._period, 0.0, self._update)
 
+    @staticmethod
+    def AddToBuilder(*, builder, plant: MultibodyPlant, query_object_output_port,
+                     robot_geometry_ids: Sequence[GeometryId], shell_geometry_ids: Sequence[GeometryId],
+                     name: str = "shell_monitor", **kwargs) -> "ShellMonitor":
+        """Adds a monitor named ``name`` fed by SceneGraph's ``query_object_output_port``;
+        ``kwargs`` are the constructor's (``period``, ``names``, ``kinds``, ...)."""
+        monitor = builder.AddNamedSystem(name, ShellMonitor(
+            plant=plant, robot_geometry_ids=robot_geometry_ids, shell_geometry_ids=shell_geometry_ids, **kwargs))
+        builder.Connect(query_object_output_port, monitor.query_object_input_port)
+        return monitor
+
     @property
     def period(self) -> float:
         return self._period
