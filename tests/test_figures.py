@@ -47,9 +47,8 @@ def test_plan_legend_names_the_path_the_critical_configurations_the_obstacle_and
     (axes,) = figure.axes
     entries = _legend(axes)
     expected = {"plan": "plan", "critical configurations (con_j)": "critical configurations",
-                "obstacle": "obstacle", "safety shell (keep out)": "safety shell",
-                "tool x": "tool x", "tool y": "tool y", "tool z": "tool z"}
-    assert set(entries) == set(expected)
+                "obstacle": "obstacle", "safety shell (keep out)": "safety shell"}
+    assert set(entries) == {*expected, "tool axes x, y, z"}
     for label, kind in expected.items():  # each entry has the colour that kind is drawn in
         assert to_rgba(entries[label].get_color()) == to_rgba(PLAN_COLOURS[kind]), label
     drawn = {to_rgba(line.get_color(), alpha=1) for line in axes.get_lines()}
@@ -125,3 +124,33 @@ def test_figure_files_are_written(tmp_path):
     joints = joint_trajectories_figure(tmp_path / "joints.png", t, np.zeros((20, 6)), lower=lower, upper=upper)
     for path in (plan, joints):
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_trial_figures_use_the_models_limits_per_joint(tmp_path, monkeypatch):
+    """``simulate --figures`` and ``paper`` draw a trial's joints through write_trial_figures,
+    which passes each joint's limits from the model (the elbow's +-pi included)."""
+    from types import SimpleNamespace
+
+    from pydrake.math import RigidTransform
+
+    import drake_lfd.experiments.figures as figures
+    from drake_lfd.experiments.simulation import write_trial_figures
+
+    drawn = {}
+
+    def capture(path, t, q, **kwargs):
+        drawn["figure"] = draw_joint_trajectories(t, q, **kwargs)
+        return path
+
+    monkeypatch.setattr(figures, "joint_trajectories_figure", capture)
+    task = SimpleNamespace(X_WB=RigidTransform(), X_tool0_E=RigidTransform(), obstacles=(), safety_shells=())
+    t = np.linspace(0.0, 1.0, 20)
+    outcome = SimpleNamespace(trial=1, plan=SimpleNamespace(task=task, timed=SimpleNamespace(
+        poses=_poses(20), critical_indices=[0, 19])), run=SimpleNamespace(t=t, q=np.zeros((20, 6))))
+    written = write_trial_figures(task, outcome, tmp_path, "demo")
+    assert (tmp_path / written["plan"]).is_file()
+    panels = _joint_axes(drawn["figure"])
+    for name, axes in panels.items():
+        limit = np.pi if name == "elbow" else 2 * np.pi
+        levels = sorted(float(line.get_ydata()[0]) for line in axes.get_lines() if line.get_gid() == "position_limit")
+        assert levels == pytest.approx([-limit, limit]), name

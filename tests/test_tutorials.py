@@ -1,7 +1,12 @@
-"""The tutorials (tutorials/*.py) run top to bottom headless in their short mode, write
-their figures and recordings, and reach the outcome their narrative promises."""
+"""The tutorials (tutorials/*.py, and the same cells as tutorials/*.ipynb) run top to bottom
+headless in their short mode, write their figures and recordings, and reach the outcome
+their narrative promises; each notebook is in sync with its script."""
 
-import importlib.util
+import asyncio
+import json
+import os
+import runpy
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +15,10 @@ import pytest
 from drake_lfd.io.library import Library
 
 TUTORIALS = Path(__file__).resolve().parent.parent / "tutorials"
+STEMS = ("01_transferring", "02_filling_pouring", "03_assembling", "04_record_your_own")
+# A notebook has no command line: this environment variable selects the short run.
+SHORT = "DRAKE_LFD_TUTORIAL_SHORT"
+REGENERATE = "jupytext --to ipynb tutorials/{stem}.py"
 
 pytestmark = [
     pytest.mark.slow,
@@ -17,16 +26,20 @@ pytestmark = [
 ]
 
 
-def _load_tutorial(stem):
-    spec = importlib.util.spec_from_file_location(f"tutorial_{stem}", TUTORIALS / f"{stem}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def _summary(out):
+    return json.loads((out / "summary.json").read_text())
 
 
-def _run(stem, out):
-    mut = _load_tutorial(stem)
-    return mut.main(["--short", "--out", str(out)])
+def _run_script(stem, out, monkeypatch):
+    """Runs tutorials/STEM.py as ``python tutorials/STEM.py --short --out OUT`` would (in this
+    process) and returns the summary it wrote."""
+    script = TUTORIALS / f"{stem}.py"
+    monkeypatch.setattr(sys, "argv", [str(script), "--short", "--out", str(out)])
+    monkeypatch.delenv(SHORT, raising=False)
+    runpy.run_path(str(script), run_name="__main__")
+    summary = _summary(out)
+    assert summary["short"] is True
+    return summary
 
 
 def _assert_files(out, names):
@@ -35,19 +48,11 @@ def _assert_files(out, names):
         assert path.is_file() and path.stat().st_size > 0, f"{name} missing"
 
 
-def test_every_tutorial_is_tested_and_listed():
-    scripts = sorted(p.stem for p in TUTORIALS.glob("[0-9][0-9]_*.py"))
-    assert scripts == ["01_transferring", "02_filling_pouring", "03_assembling", "04_record_your_own"]
-    readme = (TUTORIALS / "README.md").read_text()
-    for stem in scripts:
-        assert f"{stem}.py" in readme
-
-
-def test_transferring(tmp_path):
-    summary = _run("01_transferring", tmp_path)
-    _assert_files(tmp_path, ["transferring_plan.png", "transferring_joints.png", "transferring_trial1.html",
-                             "transferring_trials.json"])
-    assert "<html" in (tmp_path / "transferring_trial1.html").read_text()[:2000].lower()
+# -- what each tutorial must reach (summary.json, as written by the script or the notebook)
+def _check_transferring(summary, out):
+    _assert_files(out, ["transferring_plan.png", "transferring_joints.png", "transferring_trial1.html",
+                        "transferring_trials.json"])
+    assert "<html" in (out / "transferring_trial1.html").read_text()[:2000].lower()
     assert summary["plan_status"] == "planned"
     assert summary["trials"] == 1
     assert summary["successes"] == [True], summary["failures"]
@@ -55,10 +60,9 @@ def test_transferring(tmp_path):
     assert summary["max_correction_position_m"] < 0.01
 
 
-def test_filling_pouring(tmp_path):
-    summary = _run("02_filling_pouring", tmp_path)
-    _assert_files(tmp_path, ["filling_pouring_plan.png", "filling_pouring_joints.png", "filling_pouring_training.png",
-                             "filling_pouring_trial1.html", "filling_pouring_trials.json", "policy.json"])
+def _check_filling_pouring(summary, out):
+    _assert_files(out, ["filling_pouring_plan.png", "filling_pouring_joints.png", "filling_pouring_training.png",
+                        "filling_pouring_trial1.html", "filling_pouring_trials.json", "policy.json"])
     demos = [demo for demo, _, _ in summary["composition"]]
     assert demos[0] == "filling" and demos[-1].startswith("screw")
     assert len(summary["gamma_deg"]) == 3
@@ -68,10 +72,9 @@ def test_filling_pouring(tmp_path):
     assert summary["successes"] == [True], summary["failures"]
 
 
-def test_assembling(tmp_path):
-    summary = _run("03_assembling", tmp_path)
-    _assert_files(tmp_path, ["assembling_request.json", "assembling_retraining.png", "assembling_plan.png",
-                             "assembling_joints.png", "assembling_trial1.html", "policy_paper6.json"])
+def _check_assembling(summary, out):
+    _assert_files(out, ["assembling_request.json", "assembling_retraining.png", "assembling_plan.png",
+                        "assembling_joints.png", "assembling_trial1.html", "policy_paper6.json"])
     assert summary["paper5_status"] == "demonstration_requested"
     assert summary["paper5_q_status"] == "demonstration_requested"
     ((con_from, con_to, axis, angle),) = summary["uncovered"]
@@ -79,21 +82,137 @@ def test_assembling(tmp_path):
     np.testing.assert_allclose(np.abs(axis), [1, 0, 0], atol=1e-9)
     assert np.degrees(angle) == pytest.approx(90)
     assert summary["paper6_status"] == "planned"
-    assert ("span", 2, 3) in summary["composition"]
+    assert ["span", 2, 3] in summary["composition"]
     assert summary["successes"] == [True], summary["failures"]
 
 
-def test_record_your_own(tmp_path):
-    summary = _run("04_record_your_own", tmp_path)
-    _assert_files(tmp_path, ["roll_carry.yaml", "roll_carry.csv", "roll_carry_joints.png",
-                             "roll_carry_demonstration.html", "assembling_plan.png", "assembling_trial1.html",
-                             "summary.json"])
-    assert summary["request"] == [(2, 3)]
-    reopened = Library.open(tmp_path / "my_library")
+def _check_record_your_own(summary, out):
+    _assert_files(out, ["roll_carry.yaml", "roll_carry.csv", "roll_carry_joints.png",
+                        "roll_carry_demonstration.html", "assembling_plan.png", "assembling_trial1.html",
+                        "summary.json"])
+    assert summary["request"] == [[2, 3]]
+    reopened = Library.open(out / "my_library")
     assert reopened.names == ("screw_cw", "screw_ccw", "filling", "pouring", "stacking", "roll_carry")
     assert summary["plan_status"] == "planned"
-    assert ("roll_carry", 2, 3) in summary["composition"]
+    assert ["roll_carry", 2, 3] in summary["composition"]
+    assert list(summary["trials"]) == ["assembling"]  # the short run
     assert summary["trials"]["assembling"]["success"], summary["trials"]["assembling"]["failures"]
+
+
+CHECKS = {
+    "01_transferring": _check_transferring,
+    "02_filling_pouring": _check_filling_pouring,
+    "03_assembling": _check_assembling,
+    "04_record_your_own": _check_record_your_own,
+}
+
+
+def test_every_tutorial_is_tested_listed_and_has_its_notebook():
+    scripts = sorted(p.stem for p in TUTORIALS.glob("[0-9][0-9]_*.py"))
+    assert scripts == list(STEMS) == list(CHECKS)
+    assert sorted(p.stem for p in TUTORIALS.glob("[0-9][0-9]_*.ipynb")) == scripts
+    readme = (TUTORIALS / "README.md").read_text()
+    for stem in scripts:
+        assert f"{stem}.py" in readme and f"{stem}.ipynb" in readme
+
+
+# -- the scripts ---------------------------------------------------------------------------
+def test_transferring(tmp_path, monkeypatch):
+    _check_transferring(_run_script("01_transferring", tmp_path, monkeypatch), tmp_path)
+
+
+def test_filling_pouring(tmp_path, monkeypatch):
+    _check_filling_pouring(_run_script("02_filling_pouring", tmp_path, monkeypatch), tmp_path)
+
+
+def test_assembling(tmp_path, monkeypatch):
+    _check_assembling(_run_script("03_assembling", tmp_path, monkeypatch), tmp_path)
+
+
+def test_record_your_own(tmp_path, monkeypatch):
+    summary = _run_script("04_record_your_own", tmp_path, monkeypatch)
+    _check_record_your_own(summary, tmp_path)
     # Running it again into the same folder starts the library afresh instead of failing.
-    again = _run("04_record_your_own", tmp_path)
+    again = _run_script("04_record_your_own", tmp_path, monkeypatch)
     assert again["composition"] == summary["composition"]
+
+
+# -- the notebooks -------------------------------------------------------------------------
+@pytest.mark.parametrize("stem", STEMS)
+def test_notebook_is_in_sync_with_its_script(stem):
+    """The .ipynb has exactly the script's cells (jupytext's percent format: ``# %%``),
+    with no outputs: regenerate it with ``jupytext --to ipynb`` after editing the script."""
+    import jupytext
+    import nbformat
+
+    script = jupytext.read(TUTORIALS / f"{stem}.py", fmt="py:percent")
+    notebook = nbformat.read(TUTORIALS / f"{stem}.ipynb", as_version=4)
+    nbformat.validate(notebook)
+    hint = f"tutorials/{stem}.ipynb is out of date: {REGENERATE.format(stem=stem)}"
+    assert [(c.cell_type, c.source) for c in notebook.cells] == [(c.cell_type, c.source) for c in script.cells], hint
+    assert sum(c.cell_type == "markdown" for c in notebook.cells) >= 5  # the narrative, not one big cell
+    for cell in notebook.cells:
+        if cell.cell_type == "code":
+            assert cell.outputs == [] and cell.execution_count is None, f"{hint} (outputs must be cleared)"
+    assert notebook.metadata.kernelspec.name == "python3"
+    assert notebook.metadata.jupytext.formats == "ipynb,py:percent"
+
+
+def _requested_notebooks(request):
+    """The stems of the notebook tests this session runs (so ``-k`` runs only those)."""
+    return sorted({item.callspec.params["stem"] for item in request.session.items
+                   if getattr(item, "originalname", None) == "test_notebook_runs_in_short_mode"
+                   and item.path == Path(__file__)})
+
+
+async def _execute_all(stems, root, parallel):
+    """Executes tutorials/STEM.ipynb for every stem, ``parallel`` kernels at a time, each
+    in its own working directory under ``root`` (where the tutorial's default ``--out``,
+    ``tutorials_out/STEM``, lands) with the short run selected by the environment."""
+    import nbformat
+    from nbclient import NotebookClient
+
+    env = dict(os.environ, **{SHORT: "1"})
+    gate = asyncio.Semaphore(parallel)
+
+    async def one(stem):
+        work = root / stem
+        work.mkdir()
+        notebook = nbformat.read(TUTORIALS / f"{stem}.ipynb", as_version=4)
+        # One more cell, so the test can tell the kernel runs this environment's Python.
+        notebook.cells.append(nbformat.v4.new_code_cell("import sys\nprint(sys.prefix)"))
+        client = NotebookClient(notebook, kernel_name="python3", timeout=600, startup_timeout=120,
+                                resources={"metadata": {"path": str(work)}})
+        async with gate:
+            try:
+                await client.async_execute(env=env)
+            except Exception as error:  # noqa: BLE001 - reported by the test of this notebook
+                return stem, work / "tutorials_out" / stem, notebook, error
+        return stem, work / "tutorials_out" / stem, notebook, None
+
+    return {stem: result for stem, *result in await asyncio.gather(*(one(stem) for stem in stems))}
+
+
+@pytest.fixture(scope="module")
+def executed_notebooks(request, tmp_path_factory):
+    stems = _requested_notebooks(request)
+    parallel = max(1, min(len(stems), os.cpu_count() or 1))
+    return asyncio.run(_execute_all(stems, tmp_path_factory.mktemp("notebooks"), parallel))
+
+
+@pytest.mark.parametrize("stem", STEMS)
+def test_notebook_runs_in_short_mode(stem, executed_notebooks):
+    """Each notebook runs headless (nbclient, the ``python3`` kernel ipykernel provides)
+    with ``DRAKE_LFD_TUTORIAL_SHORT=1`` and reaches what its script does."""
+    out, notebook, error = executed_notebooks[stem]
+    if error is not None:
+        raise AssertionError(f"tutorials/{stem}.ipynb failed:\n{error}")
+    errors = [o for c in notebook.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
+    assert not errors, errors
+    prefix = "".join(o.get("text", "") for o in notebook.cells[-1].outputs).strip()
+    assert Path(prefix) == Path(sys.prefix), "the python3 kernel ran another environment's Python"
+    # The figures were shown in the notebook, not only written.
+    assert any("image/png" in o.get("data", {}) for c in notebook.cells if c.cell_type == "code" for o in c.outputs)
+    summary = _summary(out)
+    assert summary["short"] is True
+    CHECKS[stem](summary, out)

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.legend_handler import HandlerTuple
 from matplotlib.lines import Line2D
 
 __all__ = [
@@ -134,9 +135,10 @@ def draw_plan(poses, critical_indices, *, obstacles=(), safety_shells=(), triad_
         entries.append(("obstacle", Line2D([], [], color=colours["obstacle"], lw=0.8)))
     if len(safety_shells):
         entries.append(("safety shell (keep out)", Line2D([], [], color=colours["safety shell"], lw=0.8)))
-    entries += [(f"tool {axis}", Line2D([], [], color=colours[f"tool {axis}"], lw=1)) for axis in "xyz"]
+    entries.append(("tool axes x, y, z", tuple(Line2D([], [], color=colours[f"tool {axis}"], lw=1.5)
+                                               for axis in "xyz")))
     labels, handles = zip(*entries)
-    axes.legend(handles, labels, loc="upper left", fontsize=7, ncol=2)
+    axes.legend(handles, labels, loc="upper left", fontsize=7, handler_map={tuple: HandlerTuple(ndivide=None)})
     everything = np.concatenate([p] + [np.asarray(b.centre)[None] for b in (*obstacles, *safety_shells)])
     centre = everything.mean(axis=0)
     radius = max(np.ptp(everything, axis=0).max() / 2.0, 0.1) + 0.05
