@@ -341,6 +341,7 @@ class ClosedLoopRunner:
         for con in range(1, num_cons + 1):
             # The planner may replan while the arm moves: advance until the due time
             # of this configuration in the plan in force no longer moves.
+            t_due = float(scheduled.due_times_s()[con - 1])
             while not stopped_early:
                 scheduled = pipeline.plan_output_port.Eval(context)
                 t_due = float(scheduled.due_times_s()[con - 1])
@@ -357,7 +358,7 @@ class ClosedLoopRunner:
                 nan6 = np.full(NUM_JOINTS, np.nan)
                 critical_errors.append(CriticalError(con, t_due, math.nan, math.nan, nan6, reached=False))
                 continue
-            X_WE_desired = scheduled.timed.X_WE_list()[scheduled.timed.critical_indices[con - 1]]
+            X_WE_desired = scheduled.X_WE_desired(t_due)  # the plan's pose of con_i (a knot)
             q = plant.GetPositions(plant_context, model).copy()
             position, rotation = _pose_errors(self.kinematics.X_WE(q), X_WE_desired)
             critical_errors.append(CriticalError(con, t_due, position, rotation, q))

@@ -7,8 +7,8 @@ ScheduledPlan when the task changes while the robot moves, following the paper's
 the state is the configuration the robot is in plus the critical configurations still
 ahead, so only those are planned again.
 
-- If the critical configuration the robot is heading to did not change (and neither did
-  those already passed), the current span is finished as planned and the new plan
+- If the critical configuration the robot is heading to did not change (those already
+  passed do not matter), the current span is finished as planned and the new plan
   starts there: the tool is at rest at every critical configuration, so the join is
   smooth (velocity zero on both sides).
 - Otherwise the new plan starts from the pose the robot is commanded to at the moment
@@ -196,8 +196,13 @@ def replan(
 
     ``plan(task)`` plans a concrete task (the planner system's settings). See the module
     docstring for where the new plan starts. When the new remainder cannot be planned
-    (no composition, or the task's length changed), the current motion is kept and the
-    failed result is returned in ``rejected``.
+    (no composition), the current motion is kept and the failed result is returned in
+    ``rejected``. Critical configurations already passed do not matter any more.
+
+    Raises
+    ------
+    ValueError
+        When the new task has another number of critical configurations.
     """
     old = current.result
     if not old.planned:
@@ -214,7 +219,7 @@ def replan(
     if passed >= n:
         return dataclasses.replace(current, task_fingerprint=task_digest, library_revision=library_revision)
     heading = passed  # 0-based index of the critical configuration the robot is heading to
-    unchanged = all(_same_con(cons_old[i], cons_new[i]) for i in range(heading + 1))
+    unchanged = _same_con(cons_old[heading], cons_new[heading])
     grid = cons_new[heading].angle_grid_deg
     if unchanged:
         # Finish the current span; plan from con_(heading+1) at the angles chosen for it.
