@@ -131,3 +131,14 @@ def test_record_library_plan_in_one_diagram():
     assert after.planned
     assert "span" in [step.demo for step in after.result.composition]
     assert library_system.library_output_port.Eval(library_system.GetMyContextFromRoot(context)).revision == 1
+
+
+def test_planner_system_replans_for_another_library_of_the_same_revision():
+    task = load_task(SIMS / "assembling.yaml")
+    dut = PlannerSystem(planner="exact")
+    context = dut.CreateDefaultContext()
+    dut.task_input_port.FixValue(context, draw_trial(task, 0))
+    dut.library_input_port.FixValue(context, LibraryFeatures(library_features(Library.open("paper5"))))
+    assert dut.plan_now(context).result.status == "demonstration_requested"
+    dut.library_input_port.FixValue(context, LibraryFeatures(library_features(Library.open("paper6"))))
+    assert dut.plan_now(context).planned  # both are revision 0: their contents tell them apart

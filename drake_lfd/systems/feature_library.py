@@ -16,9 +16,11 @@ Not for: reading or writing library files (``io/library.py``) or the feature mat
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import types
 from typing import Mapping
 
+import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder, EventStatus, LeafSystem, OutputPort
@@ -48,9 +50,22 @@ class LibraryFeatures:
     revision: int = 0
     X_tool0_E: RigidTransform = dataclasses.field(default_factory=RigidTransform)
 
+    def __post_init__(self):
+        digest = hashlib.sha256()
+        for name, feature in self.features.items():
+            digest.update(name.encode() + b"\0")
+            for values in (feature.rotations, feature.translations):
+                digest.update(np.ascontiguousarray(values, dtype=float).tobytes())
+        object.__setattr__(self, "_digest", digest.digest())
+
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(self.features)
+
+    @property
+    def digest(self) -> bytes:
+        """A digest of the names and features: equal digests, equal libraries."""
+        return self._digest
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of a Context share it

@@ -127,7 +127,7 @@ class PlannerSystem(LeafSystem):
         if current is None:
             return ScheduledPlan(self.plan(task, library), self._start_time_s, digest, library.revision,
                                  inputs=inputs)
-        if current.task_fingerprint == digest and current.library_revision == library.revision:
+        if current.task_fingerprint == digest and _library_digest(current) == library.digest:
             return dataclasses.replace(current, inputs=inputs)
         scheduled = replan(current, task, library.features, context.get_time(),
                            lambda sub_task: self.plan(sub_task, library),
@@ -148,3 +148,8 @@ class PlannerSystem(LeafSystem):
             return EventStatus.DidNothing()  # the Simulator then leaves the state alone
         state.get_mutable_abstract_state(self._state_index).set_value(plan)
         return EventStatus.Succeeded()
+
+
+def _library_digest(plan: ScheduledPlan) -> bytes:
+    """The digest of the library ``plan`` was made with (empty when unknown)."""
+    return plan.inputs[1].digest if len(plan.inputs) == 2 else b""
