@@ -25,7 +25,7 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from drake_lfd.core.resources import scenarios_directory
-from drake_lfd.io.simulation_config import PipelineConfig, load_pipeline_config
+from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.diagrams.station import build_station
 from drake_lfd.experiments.simulation import TrialRunner
 from drake_lfd.io.library import Library, library_features
@@ -59,7 +59,7 @@ def main() -> None:
     args = parser.parse_args()
     task = load_task(scenarios_directory() / "transferring.yaml")
     features = library_features(Library.open("paper5"))
-    config = load_pipeline_config(task.file)
+    config = task.simulation
     if args.controller_period is not None:
         config = dataclasses.replace(config, controller=dataclasses.replace(
             config.controller, time_step=args.controller_period)).checked()

@@ -11,7 +11,8 @@ from pydrake.systems.analysis import Simulator
 
 import drake_lfd.diagrams.station as mut
 from drake_lfd.core.errors import InputError
-from drake_lfd.io.simulation_config import PipelineConfig, StationConfig, pipeline_config_from_text
+from drake_lfd.io.simulation_config import PipelineConfig, StationConfig
+from drake_lfd.io.task_files import load_task
 
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -np.pi / 2, 0.0])
 
@@ -93,25 +94,34 @@ def test_the_station_tracks_a_step_with_the_configured_gains():
     assert errors["softer"] > errors["default"]  # the gains in the config are the ones used
 
 
-def test_simulation_block_is_loaded_typed_and_checked():
-    config = pipeline_config_from_text(
-        "name: t\nsimulation:\n  station: {time_step: 0.002}\n  controller: {time_step: 0.02}\n  settle_s: 0.3\n")
+TASK_HEAD = "name: t\ncritical_configurations:\n  - {p: [0.4, 0, 0.3], euler_zyx: [0, 0, 0]}\n  - {p: [0.4, 0.1, 0.3], euler_zyx: [0, 0, 0]}\n"
+
+
+def load_task_text(tmp_path, text):
+    path = tmp_path / "task.yaml"
+    path.write_text(text)
+    return load_task(path)
+
+
+def test_simulation_block_is_loaded_typed_and_checked(tmp_path):
+    config = load_task_text(tmp_path, TASK_HEAD + "simulation:\n  station: {time_step: 0.002}\n"
+                            "  controller: {time_step: 0.02}\n  settle_s: 0.3\n").simulation
     assert config.station.time_step == 0.002
     assert config.station.command_period == 0.02  # tied to the controller's period
     assert config.settle_s == 0.3
-    assert pipeline_config_from_text("name: t\n") == PipelineConfig().checked()
+    assert load_task_text(tmp_path, TASK_HEAD).simulation == PipelineConfig().checked()
 
 
 @pytest.mark.parametrize("block, field", [
-    ("simulation:\n  stationx: 1\n", "simulation"),
-    ("simulation:\n  settle_s: abc\n", "simulation"),
+    ("simulation:\n  stationx: 1\n", "simulation.stationx"),
+    ("simulation:\n  settle_s: abc\n", "simulation.settle_s"),
     ("simulation:\n  controller: {method: foo}\n", "simulation.controller.method"),
     ("simulation:\n  station: {time_step: -1}\n", "simulation.station.time_step"),
     ("simulation:\n  station: {drive: {proportional_gains: [1, 2]}}\n", "simulation.station.drive.proportional_gains"),
 ])
-def test_bad_simulation_blocks_are_refused_naming_the_field(block, field):
+def test_bad_simulation_blocks_are_refused_naming_the_field(tmp_path, block, field):
     with pytest.raises(InputError) as error:
-        pipeline_config_from_text("name: t\n" + block, file="task.yaml")
+        load_task_text(tmp_path, TASK_HEAD + block)
     assert error.value.field == field
     assert "task.yaml" in str(error.value)
 

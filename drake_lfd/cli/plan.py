@@ -18,7 +18,20 @@ from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, InputError
 from drake_lfd.planning.planner import PLANNERS
 
 
-__all__ = ["add_parser", "load_policy_for", "run"]
+__all__ = ["add_planning_arguments", "add_parser", "load_policy_for", "run"]
+
+
+def add_planning_arguments(parser) -> None:
+    """The task, library and planner options ``plan`` and ``simulate`` share."""
+    parser.add_argument("task", metavar="TASK.yaml", help="the task file (docs/task_files.rst)")
+    parser.add_argument("--library", required=True, metavar="LIB",
+                        help=library_help() + "; its X_tool0_E must equal the task's")
+    parser.add_argument("--planner", choices=PLANNERS, default="exact",
+                        help="exact shortest-path planner, or the greedy walk on a Q-policy")
+    parser.add_argument("--policy", metavar="POLICY", help="Q-policy file (needed by --planner q)")
+    parser.add_argument("--allow-policy-mismatch", action="store_true",
+                        help="plan with a policy trained on other demonstrations than the library's "
+                             "(default: refused; with this, a warning)")
 
 
 def add_parser(subparsers) -> None:
@@ -30,15 +43,7 @@ def add_parser(subparsers) -> None:
             "Exit 3 with the uncovered segments when the library cannot cover the task."
         ),
     )
-    parser.add_argument("task", metavar="TASK.yaml", help="the task file (docs/task_files.rst)")
-    parser.add_argument("--library", required=True, metavar="LIB",
-                        help=library_help() + "; its X_tool0_E must equal the task's")
-    parser.add_argument("--planner", choices=PLANNERS, default="exact",
-                        help="exact shortest-path planner, or the greedy walk on a Q-policy")
-    parser.add_argument("--policy", metavar="POLICY", help="Q-policy file (needed by --planner q)")
-    parser.add_argument("--allow-policy-mismatch", action="store_true",
-                        help="plan with a policy trained on other demonstrations than the library's "
-                             "(default: refused; with this, a warning)")
+    add_planning_arguments(parser)
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="draws the trial's ranged positions; seeds the Q-planner's refinement")
     parser.add_argument("--json", metavar="OUT",

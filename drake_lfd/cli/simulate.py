@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from drake_lfd.cli.argument_checks import library_help, prepare_output, require_at_least, require_seed
+from drake_lfd.cli.argument_checks import prepare_output, require_at_least, require_seed
 from drake_lfd.io.atomic_files import atomic_write_json
 from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, InputError
-from drake_lfd.planning.planner import PLANNERS
+from drake_lfd.cli.plan import add_planning_arguments, load_policy_for
 
 
 __all__ = ["add_parser", "run"]
@@ -28,15 +28,7 @@ def add_parser(subparsers) -> None:
             "safety shells, and judge each run (docs/method.rst, Closed loop and success)."
         ),
     )
-    parser.add_argument("task", metavar="TASK.yaml", help="the task file (docs/task_files.rst)")
-    parser.add_argument("--library", required=True, metavar="LIB",
-                        help=library_help() + "; its X_tool0_E must equal the task's")
-    parser.add_argument("--planner", choices=PLANNERS, default="exact",
-                        help="exact shortest-path planner, or the greedy walk on a Q-policy")
-    parser.add_argument("--policy", metavar="POLICY", help="Q-policy file (needed by --planner q)")
-    parser.add_argument("--allow-policy-mismatch", action="store_true",
-                        help="plan with a policy trained on other demonstrations than the library's "
-                             "(default: refused; with this, a warning)")
+    add_planning_arguments(parser)
     parser.add_argument("--trials", type=int, default=1, metavar="N", help="number of trials, >= 1")
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="the first trial's seed (trial i, from 0, uses S + i)")
@@ -51,7 +43,6 @@ def add_parser(subparsers) -> None:
 
 
 def run(args) -> int:
-    from drake_lfd.cli.plan import load_policy_for
     from drake_lfd.io.library import Library, check_end_effector_frame, library_features
     from drake_lfd.cli.progress import ProgressBar
     from drake_lfd.experiments.simulation import run_trials, simulate_json, trial_summary_line, write_trial_figures

@@ -3,8 +3,8 @@
 Every gain, step and period of the station, the controller, the shell monitor, the
 joint logger and the planner system lives in one of these dataclasses, with the measured
 defaults, so a scenario can change them without code. A task file may carry them in an
-optional ``simulation:`` block, loaded with Drake's ``yaml_load_typed`` (unknown keys
-are errors)::
+optional ``simulation:`` block, which :mod:`drake_lfd.io.task_files` loads (Drake's
+``yaml_load_typed``; unknown keys are errors) and checks with :meth:`PipelineConfig.checked`::
 
     simulation:
       station: {time_step: 0.002}
@@ -18,9 +18,7 @@ Not for: building anything (``station.py``, ``pipeline.py``) or the task itself.
 
 import dataclasses
 import math
-from pathlib import Path
 
-from pydrake.common.yaml import yaml_load_typed
 
 from drake_lfd.core.errors import InputError
 
@@ -33,8 +31,6 @@ __all__ = [
     "PipelineConfig",
     "STATION_TIME_STEP_S",
     "CLOSED_LOOP_TIME_STEP_S",
-    "load_pipeline_config",
-    "pipeline_config_from_text",
 ]
 
 # The plant step of a bare station (fine enough for any use) and of a closed-loop run
@@ -185,28 +181,3 @@ class PipelineConfig:
                                  field=f"simulation.station.drive.{name}")
         return dataclasses.replace(
             self, station=dataclasses.replace(self.station, command_period=self.controller.time_step))
-
-
-def pipeline_config_from_text(text: str, *, file: str | None = None) -> PipelineConfig:
-    """The ``simulation:`` block of a task file's text (defaults where it is absent)."""
-    try:
-        config = yaml_load_typed(schema=PipelineConfig, data=text, child_name="simulation",
-                                 defaults=PipelineConfig())
-    except KeyError:  # no simulation block
-        return PipelineConfig().checked(file=file)
-    except (RuntimeError, ValueError, TypeError, AttributeError) as error:
-        message = (str(error).strip().splitlines() or [type(error).__name__])[0]
-        raise InputError(f"bad simulation block: {message}", file=file, field="simulation") from None
-    return config.checked(file=file)
-
-
-def load_pipeline_config(path: str | Path | None) -> PipelineConfig:
-    """The ``simulation:`` block of the task file at ``path``; defaults for None or a
-    file without one."""
-    if path is None:
-        return PipelineConfig().checked()
-    try:
-        text = Path(path).read_text()
-    except OSError as error:
-        raise InputError(f"cannot read ({error.strerror})", file=str(path)) from None
-    return pipeline_config_from_text(text, file=str(path))
