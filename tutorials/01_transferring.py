@@ -39,8 +39,6 @@
 # %%
 import argparse
 import json
-import os
-import sys
 import time
 from pathlib import Path
 
@@ -49,6 +47,7 @@ import numpy as np
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.core.tasks import draw_trial
 from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure
+from drake_lfd.experiments.notebooks import parse_tutorial_arguments, show
 from drake_lfd.experiments.simulation import composition_counts, run_trials, simulate_json, trial_summary_line
 from drake_lfd.io.library import Library, check_end_effector_frame, library_features
 from drake_lfd.io.task_files import load_task
@@ -62,29 +61,13 @@ NAME = "01_transferring"
 SIMS = scenarios_directory()
 
 
-def running_as_notebook() -> bool:
-    """True in a Jupyter kernel (this file opened as a notebook), False as a script."""
-    ipython = sys.modules.get("IPython")
-    shell = ipython.get_ipython() if ipython is not None else None
-    return shell is not None and hasattr(shell, "kernel")
-
-
-def show(png):
-    """Shows a figure just written to ``png`` in the notebook (a script only writes it)."""
-    if running_as_notebook():
-        from IPython.display import Image, display
-
-        display(Image(filename=str(png)))
-
-
 # %% [markdown]
 # ## Settings
 #
 # A script takes them from its command line: `--out DIR` (default
 # `tutorials_out/01_transferring` in the current directory), `--short` (one closed-loop
 # trial instead of five), `--trials N`, `--seed S`. A notebook has no command line: it
-# uses the defaults (write options into the list given to `parse_args` below, such as
-# `["--short"]`, to change them), and the environment variable
+# uses the defaults (change the `default=` values below to change them), and the environment variable
 # `DRAKE_LFD_TUTORIAL_SHORT=1` selects the short run for both.
 
 # %%
@@ -94,8 +77,7 @@ parser.add_argument("--out", default=str(Path("tutorials_out") / NAME), metavar=
 parser.add_argument("--short", action="store_true", help="one closed-loop trial instead of five")
 parser.add_argument("--trials", type=int, default=None, metavar="N", help="override the number of trials")
 parser.add_argument("--seed", type=int, default=0, metavar="S", help="trial i uses seed S + i - 1")
-args = parser.parse_args([] if running_as_notebook() else None)
-short = args.short or os.environ.get("DRAKE_LFD_TUTORIAL_SHORT", "0") not in ("", "0")
+args, short = parse_tutorial_arguments(parser)
 out = Path(args.out)
 out.mkdir(parents=True, exist_ok=True)
 num_trials = args.trials or (1 if short else 5)

@@ -35,8 +35,6 @@
 # %%
 import argparse
 import json
-import os
-import sys
 import time
 from pathlib import Path
 
@@ -45,6 +43,7 @@ import numpy as np
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.core.tasks import draw_trial
 from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure, training_curve_figure
+from drake_lfd.experiments.notebooks import parse_tutorial_arguments, show
 from drake_lfd.experiments.simulation import composition_counts, run_trials, simulate_json, trial_summary_line
 from drake_lfd.io.library import Library, check_end_effector_frame, library_features
 from drake_lfd.io.plan_json import describe_uncovered, plan_json
@@ -62,21 +61,6 @@ NAME = "03_assembling"
 SIMS = scenarios_directory()
 
 
-def running_as_notebook() -> bool:
-    """True in a Jupyter kernel (this file opened as a notebook), False as a script."""
-    ipython = sys.modules.get("IPython")
-    shell = ipython.get_ipython() if ipython is not None else None
-    return shell is not None and hasattr(shell, "kernel")
-
-
-def show(png):
-    """Shows a figure just written to ``png`` in the notebook (a script only writes it)."""
-    if running_as_notebook():
-        from IPython.display import Image, display
-
-        display(Image(filename=str(png)))
-
-
 def label(result) -> str:
     return "+".join(step.demo for step in result.composition)
 
@@ -87,8 +71,7 @@ def label(result) -> str:
 # A script takes them from its command line: `--out DIR` (default
 # `tutorials_out/03_assembling` in the current directory), `--short` (one closed-loop
 # trial instead of five), `--trials N`, `--seed S`. A notebook has no command line: it
-# uses the defaults (write options into the list given to `parse_args` below, such as
-# `["--short"]`, to change them), and the environment variable
+# uses the defaults (change the `default=` values below to change them), and the environment variable
 # `DRAKE_LFD_TUTORIAL_SHORT=1` selects the short run for both.
 #
 # The paper trains on 20 random tasks for 100 episodes. That takes well under a second
@@ -101,8 +84,7 @@ parser.add_argument("--out", default=str(Path("tutorials_out") / NAME), metavar=
 parser.add_argument("--short", action="store_true", help="one closed-loop trial instead of five")
 parser.add_argument("--trials", type=int, default=None, metavar="N", help="override the number of trials")
 parser.add_argument("--seed", type=int, default=0, metavar="S", help="trial i uses seed S + i - 1")
-args = parser.parse_args([] if running_as_notebook() else None)
-short = args.short or os.environ.get("DRAKE_LFD_TUTORIAL_SHORT", "0") not in ("", "0")
+args, short = parse_tutorial_arguments(parser)
 out = Path(args.out)
 out.mkdir(parents=True, exist_ok=True)
 num_trials = args.trials or (1 if short else 5)

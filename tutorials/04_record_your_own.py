@@ -42,9 +42,7 @@
 # %%
 import argparse
 import json
-import os
 import shutil
-import sys
 import time
 from pathlib import Path
 
@@ -57,6 +55,7 @@ from drake_lfd.core.tasks import draw_trial, rigid_transform_from_euler_zyx
 from drake_lfd.diagrams.kinesthetic import record_demonstration
 from drake_lfd.diagrams.model_preview import write_configurations_html
 from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure
+from drake_lfd.experiments.notebooks import parse_tutorial_arguments, show
 from drake_lfd.experiments.simulation import run_trials, trial_summary_line
 from drake_lfd.io.demonstration_logs import read_rtde_csv, write_rtde_csv
 from drake_lfd.io.guidance_scripts import load_guidance_script
@@ -85,29 +84,13 @@ START_EULER_ZYX = (0.0, -np.pi / 2, 0.0)
 CARRY_LENGTH_M = 0.12
 
 
-def running_as_notebook() -> bool:
-    """True in a Jupyter kernel (this file opened as a notebook), False as a script."""
-    ipython = sys.modules.get("IPython")
-    shell = ipython.get_ipython() if ipython is not None else None
-    return shell is not None and hasattr(shell, "kernel")
-
-
-def show(png):
-    """Shows a figure just written to ``png`` in the notebook (a script only writes it)."""
-    if running_as_notebook():
-        from IPython.display import Image, display
-
-        display(Image(filename=str(png)))
-
-
 # %% [markdown]
 # ## Settings
 #
 # A script takes them from its command line: `--out DIR` (default
 # `tutorials_out/04_record_your_own` in the current directory) and `--short` (only the
 # assembling task closed loop; the full run also reruns tutorials 1 and 2's tasks). A
-# notebook has no command line: it uses the defaults (write options into the list given
-# to `parse_args` below, such as `["--short"]`, to change them), and the environment
+# notebook has no command line: it uses the defaults (change the `default=` values below to change them), and the environment
 # variable `DRAKE_LFD_TUTORIAL_SHORT=1` selects the short run for both.
 
 # %%
@@ -116,8 +99,7 @@ parser.add_argument("--out", default=str(Path("tutorials_out") / NAME), metavar=
                     help="folder for the script, the recording, the library and the figures (created)")
 parser.add_argument("--short", action="store_true",
                     help="only the assembling task closed loop (the full run also reruns tasks 1 and 2)")
-args = parser.parse_args([] if running_as_notebook() else None)
-short = args.short or os.environ.get("DRAKE_LFD_TUTORIAL_SHORT", "0") not in ("", "0")
+args, short = parse_tutorial_arguments(parser)
 out = Path(args.out)
 out.mkdir(parents=True, exist_ok=True)
 started = time.perf_counter()
