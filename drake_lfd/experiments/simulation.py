@@ -84,7 +84,7 @@ class TrialRunner:
                              config=config if config is not None else task.simulation)
         self._runner = ClosedLoopRunner(build_pipeline(task, **self._options))
         self._recording_runner = None
-        kinematics = UR5eKinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+        kinematics = self._runner.kinematics
         self._joint_limits = kinematics.position_limits()
         self._velocity_limits = kinematics.velocity_limits()
 
