@@ -371,3 +371,49 @@ def test_systems_wire_themselves_with_add_to_builder():
     assert controller.q_command_output_port.Eval(controller.GetMyContextFromRoot(context)).shape == (6,)
     (clearance,) = monitor.clearances(monitor.GetMyContextFromRoot(context))
     assert clearance.distance_m > 1.0
+
+
+def test_monitor_pruning_keeps_every_record_exact_with_fewer_queries():
+    """Given the joint positions, the monitor skips pairs its motion bound proves cannot
+    lower a record; along a random joint path its records equal, to the bit, those of a
+    monitor querying every pair, with a fraction of the queries."""
+    near = _flange_box(0.02, name="near_shell")
+    far = Box(name="far_obstacle", centre=[0.6, 0.6, 0.1], size=[0.1, 0.1, 0.1])
+    scene = KinematicScene(obstacles=[far], safety_shells=[near])
+    monitors, simulators = [], []
+    for pruned in (True, False):
+        dut = mut_monitor.ShellMonitor(
+            plant=scene.plant, robot_geometry_ids=scene.geometry.robot_geometry_ids,
+            shell_geometry_ids=scene.geometry.keep_out_geometry_ids, names=scene.geometry.names)
+        monitors.append(dut)
+        simulators.append(Simulator(dut))
+    rng = np.random.default_rng(7)
+    q = Q_HOME.copy()
+    for step in range(300):
+        q = q + rng.normal(scale=0.01, size=6)  # a wandering arm, ~0.5 rad per joint in all
+        query_object = _query_object(scene, q)
+        for pruned, dut, simulator in zip((True, False), monitors, simulators):
+            context = simulator.get_mutable_context()
+            dut.query_object_input_port.FixValue(context, query_object)
+            if pruned:
+                dut.robot_positions_input_port.FixValue(context, q)
+            simulator.AdvanceTo(0.01 * step + 0.005)  # one periodic sample, at 0.01 * step
+        pruned_records, full_records = (dut.clearances(simulator.get_context())
+                                        for dut, simulator in zip(monitors, simulators))
+        assert pruned_records == full_records
+    num_pairs = len(scene.geometry.robot_geometry_ids) * len(scene.geometry.keep_out_geometry_ids)
+    assert monitors[1].num_pair_queries == 300 * num_pairs
+    assert monitors[0].num_pair_queries < 0.5 * monitors[1].num_pair_queries
+
+
+def test_motion_bounds_cover_the_farthest_point_of_each_geometry():
+    """The bound of the base joint is at least how far the flange is from the base axis."""
+    scene = KinematicScene()
+    inspector = scene.scene_graph.model_inspector()
+    names = scene.geometry.names
+    flange = next(g for g in scene.geometry.robot_geometry_ids if names[g] == "wrist_3_link/flange")
+    bounds = mut_monitor.motion_bounds(scene.plant, inspector, flange)
+    assert np.all(np.isfinite(bounds)) and np.all(bounds > 0)
+    assert np.all(np.diff(bounds) <= 1e-12)  # nearer joints, smaller bounds
+    X_Wtool0 = UR5eKinematics().X_Wtool0(Q_HOME)
+    assert bounds[0] >= np.linalg.norm(X_Wtool0.translation()[:2])

@@ -7,7 +7,8 @@
     PlanTrajectorySource --X_WE_desired, V_WE_desired--> DifferentialIKController
     DifferentialIKController --q_command--> Station (ur5e.position_command)
     Station --ur5e.position_measured--> DifferentialIKController
-    Station --query_object--> ShellMonitor;  Station --ur5e.state--> joint logger
+    Station --query_object, ur5e.position_measured--> ShellMonitor
+    Station --ur5e.state--> joint logger
 
 The scene (robot base, table under it, obstacles, safety shells) is fixed when the
 Diagram is built; the task is an input, so one Diagram serves every trial of a task
@@ -176,6 +177,9 @@ class Pipeline(Diagram):
         builder.Connect(self.controller.q_command_output_port, station.GetInputPort(station.port_name("position_command")))
         builder.Connect(station.GetOutputPort(station.port_name("position_measured")), self.controller.q_measured_input_port)
         builder.Connect(station.GetOutputPort("query_object"), self.monitor.query_object_input_port)
+        # The station's plant holds only the arm: its positions are the plant's.
+        builder.Connect(station.GetOutputPort(station.port_name("position_measured")),
+                        self.monitor.robot_positions_input_port)
         state_port = station.GetOutputPort(station.port_name("state"))
         self.logger = LogVectorOutput(state_port, builder, config.log_period)
         self.logger.set_name("joint_state_logger")

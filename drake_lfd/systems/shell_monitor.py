@@ -3,8 +3,11 @@
 Safety shells are filtered out of contact (``scene.py``), so SceneGraph's all-pairs
 queries cannot see them. The monitor asks for each (robot geometry, box) pair with
 ``QueryObject.ComputeSignedDistancePairClosestPoints(id_A, id_B)``, which ignores
-collision filters, at a fixed rate (100 Hz by default: about 7 us per pair, so a 1 kHz
-monitor would add ~40 % to a run, as measured). Its state keeps, for every box, the
+collision filters, at a fixed rate (100 Hz by default: about 4-7 us per pair, so a 1 kHz
+monitor would add ~40 % to a run, as measured). Given the arm's joint positions, it
+skips the pairs that provably cannot lower any record (see ``ShellMonitor``), so most
+samples query two or three of the twenty pairs; the records are the same as querying
+every pair, to the bit. Its state keeps, for every box, the
 minimum signed distance seen so far, which robot geometry achieved it and when. It
 samples the same states as a periodic publisher such as the joint-state logger (see
 ``ShellMonitor``), so the minimum can be recomputed exactly from a run's log. A
@@ -22,13 +25,70 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.geometry import GeometryId, QueryObject
+from pydrake.geometry import Box as BoxShape, Capsule, Cylinder, Ellipsoid, GeometryId, QueryObject, Sphere
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import EventStatus, LeafSystem
 
-__all__ = ['DEFAULT_MONITOR_PERIOD_S', 'BoxClearance', 'ShellMonitor']
+__all__ = ['DEFAULT_MONITOR_PERIOD_S', 'BoxClearance', 'ShellMonitor', 'bounding_radius', 'motion_bounds']
 
 DEFAULT_MONITOR_PERIOD_S = 0.01
+
+
+def bounding_radius(shape) -> float:
+    """Radius of a sphere about the shape's origin that contains it (inf for shapes
+    without a closed form here, such as meshes)."""
+    if isinstance(shape, Sphere):
+        return shape.radius()
+    if isinstance(shape, Cylinder):
+        return math.hypot(shape.radius(), shape.length() / 2)
+    if isinstance(shape, Capsule):
+        return shape.radius() + shape.length() / 2
+    if isinstance(shape, BoxShape):
+        return 0.5 * math.sqrt(shape.width() ** 2 + shape.depth() ** 2 + shape.height() ** 2)
+    if isinstance(shape, Ellipsoid):
+        return max(shape.a(), shape.b(), shape.c())
+    return math.inf
+
+
+def motion_bounds(plant: MultibodyPlant, inspector, geometry_id: GeometryId) -> np.ndarray:
+    """How far each position coordinate can move a robot geometry, shape (num_positions,).
+
+    Entry ``k`` bounds, over all configurations, the distance of any point of the
+    geometry from the axis of the revolute joint of coordinate ``k`` (0 for joints that
+    do not move it): the distance from the joint's origin to the next moving joint's
+    origin down the chain, and so on, plus the distance from the last one to the
+    geometry's origin and its bounding radius. Those joint-to-joint distances are fixed
+    on each body, so they are measured at the default configuration. A point then moves
+    at most ``sum_k bound_k |dq_k|`` when the coordinates change by ``dq``. ``inf`` in
+    every moving entry when the chain has a joint other than revolute or weld, or the
+    shape has no bounding radius.
+    """
+    context = plant.CreateDefaultContext()
+    radius = bounding_radius(inspector.GetShape(geometry_id))
+    body = plant.GetBodyFromFrameId(inspector.GetFrameId(geometry_id))
+    X_WG = body.EvalPoseInWorld(context).multiply(inspector.GetPoseInFrame(geometry_id))
+    parent_joint = {}
+    for joint_index in plant.GetJointIndices():
+        joint = plant.get_joint(joint_index)
+        parent_joint[joint.child_body().index()] = joint
+    bounds = np.zeros(plant.num_positions())
+    moving, reach, previous_origin = [], radius, X_WG.translation()
+    unbounded = not math.isfinite(radius)
+    world = plant.world_body().index()
+    while body.index() != world and body.index() in parent_joint:
+        joint = parent_joint[body.index()]
+        if joint.num_positions() > 0:
+            if joint.type_name() != "revolute":
+                unbounded = True
+            origin = joint.frame_on_child().CalcPoseInWorld(context).translation()
+            reach += float(np.linalg.norm(previous_origin - origin))
+            previous_origin = origin
+            bounds[joint.position_start()] = reach
+            moving.append(joint.position_start())
+        body = joint.parent_body()
+    if unbounded:
+        bounds[moving] = math.inf
+    return bounds
 
 
 @dataclass(frozen=True)
@@ -69,12 +129,27 @@ class ShellMonitor(LeafSystem):
         name: ShellMonitor
         input_ports:
         - query_object
+        - robot_positions (optional)
         output_ports:
         - min_distance
 
-    ``query_object``: SceneGraph's query port. ``min_distance`` (1,): the minimum over all
-    boxes and all samples so far, m (``inf`` before the first sample or with no boxes).
-    Per-box records: :meth:`clearances`.
+    ``query_object``: SceneGraph's query port. ``robot_positions``: the plant's generalized
+    positions, optional (the station's ``ur5e.position_measured``: its plant holds only
+    the arm). ``min_distance``
+    (1,): the minimum over all boxes and all samples so far, m (``inf`` before the first
+    sample or with no boxes). Per-box records: :meth:`clearances`.
+
+    Pruning, when ``robot_positions`` is connected: a revolute joint turning by ``dq``
+    moves every point at most ``r |dq|`` away, ``r`` bounding the point's distance from
+    the joint axis over all configurations (the joint-to-joint distances down the chain
+    plus the geometry's bounding radius, :func:`motion_bounds`), and a signed distance to
+    a fixed box changes no more than its points move. The state keeps each joint's
+    travel ``T_j`` (the sum of ``|dq_j|`` between samples), so a geometry has moved at
+    most ``M = sum_j r_j T_j`` since the start. A pair measured at ``d`` when its
+    geometry's bound was ``M0`` is at least ``d - (M - M0)`` away later; while that
+    exceeds ``max(record, 0)`` (which only shrinks) the pair can neither lower the box's
+    record nor be a penetration, and it is not queried. Geometries without a bounding
+    radius here (meshes) are queried at every sample.
 
     Parameters
     ----------
@@ -114,14 +189,29 @@ class ShellMonitor(LeafSystem):
         self._kinds = dict(kinds or {})
         self._period = float(period)
         n = len(self._box_ids)
-        # State: [min distance per box (n), index of the closest robot geometry (n),
-        # time of the minimum (n)].
-        initial = np.concatenate([np.full(n, np.inf), np.full(n, -1.0), np.full(n, np.nan)])
+        m = len(self._robot_ids)
+        # Pairs in box-major order: pair k = (robot k % m, box k // m).
+        self._num_pairs = num_pairs = n * m
+        num_joints = plant.num_positions()
+        self._num_joints = num_joints
+        # State: [min distance per box (n), index of the closest robot geometry (n), time
+        # of the minimum (n), the joint positions at the previous sample (J, nan before
+        # the first), the joints' travel so far (J, sum of |dq| over samples), each pair's
+        # wake-up travel (P, -inf: query at the next sample)].
+        initial = np.concatenate([np.full(n, np.inf), np.full(n, -1.0), np.full(n, np.nan),
+                                  np.full(num_joints, np.nan), np.zeros(num_joints), np.full(num_pairs, -np.inf)])
         self._state_index = self.DeclareDiscreteState(initial)
         self.query_object_input_port = self.DeclareAbstractInputPort(
             "query_object", AbstractValue.Make(QueryObject())
         )
+        self.robot_positions_input_port = self.DeclareVectorInputPort("robot_positions", num_joints)
         self.min_distance_output_port = self.DeclareVectorOutputPort("min_distance", 1, self._calc_min_distance)
+        # Per robot geometry, the motion bound of each joint (lists, set at the first
+        # update), and whether it has one.
+        self._radii: list[list[float]] = []
+        self._bounded: list[bool] = []
+        #: Distance queries made so far (a diagnostic, not part of the Context's state).
+        self.num_pair_queries = 0
         self._prepared = False  # names are read from SceneGraph at the first update
         if n and self._robot_ids:
             # An unrestricted update, like the plant's own step: it samples the same state
@@ -133,12 +223,16 @@ class ShellMonitor(LeafSystem):
     @staticmethod
     def AddToBuilder(*, builder, plant: MultibodyPlant, query_object_output_port,
                      robot_geometry_ids: Sequence[GeometryId], shell_geometry_ids: Sequence[GeometryId],
-                     name: str = "shell_monitor", **kwargs) -> "ShellMonitor":
-        """Adds a monitor named ``name`` fed by SceneGraph's ``query_object_output_port``;
-        ``kwargs`` are the constructor's (``period``, ``names``, ``kinds``, ...)."""
+                     robot_positions_output_port=None, name: str = "shell_monitor",
+                     **kwargs) -> "ShellMonitor":
+        """Adds a monitor named ``name`` fed by SceneGraph's ``query_object_output_port``
+        (and the robot's joint positions, for pruning, when given); ``kwargs`` are the
+        constructor's (``period``, ``names``, ``kinds``, ...)."""
         monitor = builder.AddNamedSystem(name, ShellMonitor(
             plant=plant, robot_geometry_ids=robot_geometry_ids, shell_geometry_ids=shell_geometry_ids, **kwargs))
         builder.Connect(query_object_output_port, monitor.query_object_input_port)
+        if robot_positions_output_port is not None:
+            builder.Connect(robot_positions_output_port, monitor.robot_positions_input_port)
         return monitor
 
     @property
@@ -149,17 +243,52 @@ class ShellMonitor(LeafSystem):
         query_object = self.query_object_input_port.Eval(context)
         if not self._prepared:
             self._prepare(query_object)
-        n = len(self._box_ids)
-        state = new_state.get_mutable_discrete_state().get_mutable_vector(self._state_index)
+        n, m, num_joints = len(self._box_ids), len(self._robot_ids), self._num_joints
+        # Plain Python floats: a few dozen numbers, where numpy's per-call overhead would
+        # cost more than the arithmetic.
+        state = context.get_discrete_state(self._state_index).value().tolist()
+        records, wake = state[:n], state[3 * n + 2 * num_joints:]
+        pruning = self.robot_positions_input_port.HasValue(context)
+        if pruning:
+            q = self.robot_positions_input_port.Eval(context).tolist()
+            q_previous = state[3 * n:3 * n + num_joints]
+            travel = state[3 * n + num_joints:3 * n + 2 * num_joints]
+            if q_previous[0] == q_previous[0]:  # not nan: there was a previous sample
+                travel = [t + abs(a - b) for t, a, b in zip(travel, q, q_previous)]
+            state[3 * n:3 * n + 2 * num_joints] = q + travel
+            # How far each robot geometry may have moved since the start, as a bound.
+            moved = [sum(r * t for r, t in zip(radii, travel)) if bounded else math.inf
+                     for radii, bounded in zip(self._radii, self._bounded)]
+        signed_distance = query_object.ComputeSignedDistancePairClosestPoints
+        robot_ids, box_ids = self._robot_ids, self._box_ids
+        best = [math.inf] * n  # per box: the smallest distance measured now, and by whom
+        best_index = [-1] * n
+        measured = []
+        for k in range(self._num_pairs):
+            j, i = divmod(k, m)
+            if pruning and moved[i] < wake[k]:
+                continue  # provably farther than the record and than zero: skip
+            distance = signed_distance(robot_ids[i], box_ids[j]).distance
+            measured.append((k, distance))
+            if distance < best[j]:
+                best[j], best_index[j] = distance, i
+        self.num_pair_queries += len(measured)
         penetration = None
-        for j, box_id in enumerate(self._box_ids):
-            best, best_index = self._closest_robot_geometry(query_object, box_id)
-            if best < state.GetAtIndex(j):
-                state.SetAtIndex(j, best)
-                state.SetAtIndex(n + j, best_index)
-                state.SetAtIndex(2 * n + j, context.get_time())
-            if best < 0.0 and (penetration is None or best < penetration[0]):
-                penetration = (best, best_index, j)
+        time_s = context.get_time()
+        for j in range(n):
+            if best[j] < records[j]:
+                records[j] = state[j] = best[j]
+                state[n + j], state[2 * n + j] = best_index[j], time_s
+            if best[j] < 0.0 and (penetration is None or best[j] < penetration[0]):
+                penetration = (best[j], best_index[j], j)
+        if pruning:
+            # A pair measured at d now stays beyond max(record, 0), which can only
+            # shrink, until its geometry has moved d - max(record, 0) further.
+            offset = 3 * n + 2 * num_joints
+            for k, distance in measured:
+                j, i = divmod(k, m)
+                state[offset + k] = moved[i] + distance - max(records[j], 0.0)
+        new_state.get_mutable_discrete_state().get_mutable_vector(self._state_index).SetFromVector(state)
         if self._stop_on_penetration and penetration is not None:
             depth, i, j = penetration
             return EventStatus.ReachedTermination(
@@ -170,25 +299,15 @@ class ShellMonitor(LeafSystem):
         return EventStatus.Succeeded()
 
     def _prepare(self, query_object):
-        """Names read once from SceneGraph (for geometries not named by the caller)."""
+        """Names read once from SceneGraph (for geometries not named by the caller), and
+        each pair's motion bounds."""
         for geometry_id in self._robot_ids + self._box_ids:
             self._name_of(geometry_id, query_object)
+        for geometry_id in self._robot_ids:
+            bounds = motion_bounds(self._plant, query_object.inspector(), geometry_id)
+            self._bounded.append(bool(np.all(np.isfinite(bounds))))
+            self._radii.append(np.where(np.isfinite(bounds), bounds, 0.0).tolist())
         self._prepared = True
-
-    def _closest_robot_geometry(self, query_object, box_id):
-        """Minimum signed distance to ``box_id`` over robot geometries, and which one.
-
-        Every pair is queried: plain Python over a handful of pairs, since numpy's
-        per-call overhead, or pruning by bounding spheres (``GetPoseInWorld`` costs about
-        as much as a distance query), would cost more than it saves.
-        """
-        signed_distance = query_object.ComputeSignedDistancePairClosestPoints
-        best, best_index = math.inf, -1
-        for i, robot_id in enumerate(self._robot_ids):
-            distance = signed_distance(robot_id, box_id).distance
-            if distance < best:
-                best, best_index = distance, i
-        return best, best_index
 
     def _describe(self, box_id) -> str:
         kind = self._kinds.get(box_id)
