@@ -21,6 +21,7 @@ from drake_lfd.diagrams.closed_loop import plan_through_joint_configurations
 from drake_lfd.diagrams.pipeline import scheduled_plan_from_timed
 from drake_lfd.robot.initial_ik import UnreachableConfigurationError, solve_initial_configuration
 from drake_lfd.robot.kinematics import UR5eKinematics, add_ur5e
+from drake_lfd.robot.motion_bounds import motion_bounds
 from drake_lfd.robot.scene import KinematicScene, add_scene, min_signed_distances, table_under_robot
 from drake_lfd.diagrams.station import build_station
 from drake_lfd.core.tasks import Box
@@ -412,7 +413,7 @@ def test_motion_bounds_cover_the_farthest_point_of_each_geometry():
     inspector = scene.scene_graph.model_inspector()
     names = scene.geometry.names
     flange = next(g for g in scene.geometry.robot_geometry_ids if names[g] == "wrist_3_link/flange")
-    bounds = mut_monitor.motion_bounds(scene.plant, inspector, flange)
+    bounds = motion_bounds(scene.plant, inspector, flange)
     assert np.all(np.isfinite(bounds)) and np.all(bounds > 0)
     assert np.all(np.diff(bounds) <= 1e-12)  # nearer joints, smaller bounds
     X_Wtool0 = UR5eKinematics().X_Wtool0(Q_HOME)

@@ -25,70 +25,15 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.geometry import Box as BoxShape, Capsule, Cylinder, Ellipsoid, GeometryId, QueryObject, Sphere
+from pydrake.geometry import GeometryId, QueryObject
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import EventStatus, LeafSystem
 
-__all__ = ['DEFAULT_MONITOR_PERIOD_S', 'BoxClearance', 'ShellMonitor', 'bounding_radius', 'motion_bounds']
+from drake_lfd.robot.motion_bounds import motion_bounds
+
+__all__ = ['DEFAULT_MONITOR_PERIOD_S', 'BoxClearance', 'ShellMonitor']
 
 DEFAULT_MONITOR_PERIOD_S = 0.01
-
-
-def bounding_radius(shape) -> float:
-    """Radius of a sphere about the shape's origin that contains it (inf for shapes
-    without a closed form here, such as meshes)."""
-    if isinstance(shape, Sphere):
-        return shape.radius()
-    if isinstance(shape, Cylinder):
-        return math.hypot(shape.radius(), shape.length() / 2)
-    if isinstance(shape, Capsule):
-        return shape.radius() + shape.length() / 2
-    if isinstance(shape, BoxShape):
-        return 0.5 * math.sqrt(shape.width() ** 2 + shape.depth() ** 2 + shape.height() ** 2)
-    if isinstance(shape, Ellipsoid):
-        return max(shape.a(), shape.b(), shape.c())
-    return math.inf
-
-
-def motion_bounds(plant: MultibodyPlant, inspector, geometry_id: GeometryId) -> np.ndarray:
-    """How far each position coordinate can move a robot geometry, shape (num_positions,).
-
-    Entry ``k`` bounds, over all configurations, the distance of any point of the
-    geometry from the axis of the revolute joint of coordinate ``k`` (0 for joints that
-    do not move it): the distance from the joint's origin to the next moving joint's
-    origin down the chain, and so on, plus the distance from the last one to the
-    geometry's origin and its bounding radius. Those joint-to-joint distances are fixed
-    on each body, so they are measured at the default configuration. A point then moves
-    at most ``sum_k bound_k |dq_k|`` when the coordinates change by ``dq``. ``inf`` in
-    every moving entry when the chain has a joint other than revolute or weld, or the
-    shape has no bounding radius.
-    """
-    context = plant.CreateDefaultContext()
-    radius = bounding_radius(inspector.GetShape(geometry_id))
-    body = plant.GetBodyFromFrameId(inspector.GetFrameId(geometry_id))
-    X_WG = body.EvalPoseInWorld(context).multiply(inspector.GetPoseInFrame(geometry_id))
-    parent_joint = {}
-    for joint_index in plant.GetJointIndices():
-        joint = plant.get_joint(joint_index)
-        parent_joint[joint.child_body().index()] = joint
-    bounds = np.zeros(plant.num_positions())
-    moving, reach, previous_origin = [], radius, X_WG.translation()
-    unbounded = not math.isfinite(radius)
-    world = plant.world_body().index()
-    while body.index() != world and body.index() in parent_joint:
-        joint = parent_joint[body.index()]
-        if joint.num_positions() > 0:
-            if joint.type_name() != "revolute":
-                unbounded = True
-            origin = joint.frame_on_child().CalcPoseInWorld(context).translation()
-            reach += float(np.linalg.norm(previous_origin - origin))
-            previous_origin = origin
-            bounds[joint.position_start()] = reach
-            moving.append(joint.position_start())
-        body = joint.parent_body()
-    if unbounded:
-        bounds[moving] = math.inf
-    return bounds
 
 
 @dataclass(frozen=True)
@@ -142,7 +87,8 @@ class ShellMonitor(LeafSystem):
     Pruning, when ``robot_positions`` is connected: a revolute joint turning by ``dq``
     moves every point at most ``r |dq|`` away, ``r`` bounding the point's distance from
     the joint axis over all configurations (the joint-to-joint distances down the chain
-    plus the geometry's bounding radius, :func:`motion_bounds`), and a signed distance to
+    plus the geometry's bounding radius,
+    :func:`drake_lfd.robot.motion_bounds.motion_bounds`), and a signed distance to
     a fixed box changes no more than its points move. The state keeps each joint's
     travel ``T_j`` (the sum of ``|dq_j|`` between samples), so a geometry has moved at
     most ``M = sum_j r_j T_j`` since the start. A pair measured at ``d`` when its
