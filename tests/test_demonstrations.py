@@ -15,10 +15,12 @@ Q_HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0
 
 
 def joint_motion(m=30, t0=12.5, duration=1.5, seed=0):
-    """Timestamps (m,) and joint angles (m, 6) with many significant digits."""
+    """Timestamps (m,) at irregular intervals and joint angles (m, 6) moving with them
+    (well inside the UR5e's speed limit), with many significant digits."""
     rng = np.random.default_rng(seed)
     t = t0 + np.sort(rng.uniform(0.0, duration, m))
-    q = Q_HOME + np.outer(np.linspace(0, 1, m), rng.uniform(-0.5, 0.5, 6)) + rng.normal(0, 1e-4, (m, 6))
+    progress = (t - t0) / duration
+    q = Q_HOME + np.outer(progress, rng.uniform(-0.5, 0.5, 6)) + rng.normal(0, 1e-5, (m, 6))
     return t, q
 
 
@@ -277,3 +279,88 @@ def test_poses_and_dual_quaternions_by_forward_kinematics():
     from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
 
     np.testing.assert_allclose(matrices_from_dual_quaternion(D), X, atol=1e-12)
+
+
+# ------------------------------------------------------- what real logs get wrong
+
+
+def regular_log(m=200, rate_hz=500.0, scale=1.0, seed=3):
+    """A plausible log: ``m`` samples at ``rate_hz``, timestamps multiplied by ``scale``
+    (1000: milliseconds, 1e9: nanoseconds)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(m) / rate_hz
+    q = Q_HOME + np.outer(t, rng.uniform(-0.5, 0.5, 6))  # at most 0.5 rad/s
+    return t * scale, q
+
+
+def test_last_line_without_newline_is_dropped_whatever_it_parses_to(tmp_path):
+    t, q = regular_log(m=20)
+    q[:, 5] += -3.6277474137027124 - q[-1, 5]  # wrist_3 ends at the issue's value
+    q[-1, 5] = -3.6277474137027124
+    text = plain_log(t, q).rstrip("\n")
+    assert text.endswith(",-3.6277474137027124")
+    path = tmp_path / "cut.csv"
+    path.write_text(text[: -len(".6277474137027124")])  # cut to "-3": still a number
+    demo, warnings = mut.read_rtde_csv(path)
+    assert demo.num_samples == 19
+    np.testing.assert_array_equal(demo.joint_positions, q[:19])
+    (warning,) = warnings
+    assert str(path) in warning and "line 21" in warning and "'-3'" in warning and "dropped" in warning
+    # The complete line, newline and all, is kept.
+    path.write_text(text + "\n")
+    demo, warnings = mut.read_rtde_csv(path)
+    assert demo.num_samples == 20 and warnings == ()
+
+
+def test_teleport_jump_is_refused_with_its_line(tmp_path):
+    t, q = regular_log()
+    q[120:, 1] += 2.0  # 2 rad in 2 ms: 1000 rad/s
+    message = refused(tmp_path, plain_log(t, q))
+    assert "line 122, column actual_q_1" in message and "line 121" in message
+    assert "180 deg/s" in message
+    # Just under twice the speed limit is a motion, not a jump.
+    t, q = regular_log(m=3)
+    q[2, 0] = q[1, 0] + 0.99 * mut.MAX_JOINT_SPEED_RAD_S * (t[2] - t[1])
+    path = tmp_path / "fast.csv"
+    path.write_text(plain_log(t, q))
+    assert mut.read_rtde_csv(path).demonstration.num_samples == 3
+    assert mut.MAX_JOINT_SPEED_RAD_S == pytest.approx(2 * np.radians(180))
+    np.testing.assert_allclose(UR5eKinematics().velocity_limits(), mut.UR5E_JOINT_SPEED_LIMIT_RAD_S)
+
+
+@pytest.mark.parametrize("scale, unit", [(1e3, "milliseconds"), (1e9, "nanoseconds")])
+def test_timestamps_in_ms_or_ns_are_refused_with_the_line(tmp_path, scale, unit):
+    t, q = regular_log(m=2101, scale=scale)  # 4.2 s at 500 Hz: "4200 s" in milliseconds
+    message = refused(tmp_path, plain_log(t, q))
+    assert "line 3, column timestamp" in message and unit in message and "seconds" in message
+
+
+def test_absurd_duration_is_refused_with_the_line(tmp_path):
+    t = np.arange(800.0)  # one sample a second, 799 s: a recording left running
+    q = Q_HOME + np.outer(t / t[-1], [0.3, -0.2, 0.1, 0.2, 0.3, -0.4])
+    message = refused(tmp_path, plain_log(t, q))
+    # Line 2 holds t = 0; line 603 the first sample more than 600 s after it.
+    assert "line 603, column timestamp" in message and "600 s" in message and "spans 799 s" in message
+
+
+@pytest.mark.parametrize(
+    "spelling",
+    ["0_5", "\u0660.\u0665", "\u0661", "\uff11.5", "1\u00a0", "0x1p-2", "1_000.0"],
+    ids=["underscore", "arabic-indic", "arabic-indic-integer", "fullwidth", "nbsp", "hex", "grouping"],
+)
+def test_python_only_number_spellings_are_refused(tmp_path, spelling):
+    t, q = regular_log(m=5)
+    lines = plain_log(t, q).splitlines()
+    cells = lines[3].split(",")
+    cells[2] = spelling
+    lines[3] = ",".join(cells)
+    message = refused(tmp_path, "\n".join(lines) + "\n")
+    assert "line 4, column actual_q_1" in message and "is not a number" in message
+
+
+@pytest.mark.parametrize("spelling", ["1", "-0.5", "+.5", "5.", "1e-3", "-2.5E+2", "12"])
+def test_c_number_spellings_are_read(tmp_path, spelling):
+    assert mut.parse_number(spelling) == float(spelling)
+    for bad in ("", " 1", "1 ", "e5", ".", "-", "1e", "0_5", "\u0665"):
+        assert mut.parse_number(bad) is None
+    assert math.isnan(mut.parse_number("NaN")) and mut.parse_number("-inf") == -math.inf

@@ -63,7 +63,7 @@ def test_simulate_json_is_re_derivable_from_q(tmp_path):
         X_WB=rigid_transform_from_pose_json(document["X_WB"]),
         X_tool0_E=rigid_transform_from_pose_json(document["X_tool0_E"]),
         path_constraints=draw_trial(task, 3).path_constraints,
-        obstacles=task.obstacles, safety_shells=task.safety_shells,
+        obstacles=task.obstacles, safety_shells=task.safety_shells, tool=task.tool,
     )
     assert check.success, check.failures
     for (position, rotation), logged in zip(check.critical_errors, trial["critical_errors"]):

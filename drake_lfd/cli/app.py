@@ -2,20 +2,40 @@
 
 Each command lives in its own module exposing ``add_parser(subparsers)``, which
 registers a subparser whose ``func(args) -> int`` does the work. This module only wires
-them together and turns errors into the exit codes of docs/cli.rst: 2 for bad input
-(one line on stderr, no traceback), 3 for a demonstration request, 1 for anything else.
+them together and turns every way a command can end into one line and the exit codes of
+docs/cli.rst: 2 for bad input (an :class:`~drake_lfd.core.errors.InputError`, or a file
+or folder named on the command line that cannot be read or written: missing, no
+permission, read-only, a name too long), 3 for a demonstration request, 1 for anything
+else: a fault of the machine (a full disk), an interrupt (Ctrl-C or SIGTERM, from the
+first import on) or an internal error (one line; the traceback only with ``--debug``).
+A reader that stops reading (``drake-lfd library show paper5 | head``) ends the command
+quietly.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import errno
 import importlib
+import os
+import re
+import signal
 import sys
 
 from drake_lfd import __version__
 from drake_lfd.core.errors import EXIT_BAD_INPUT, EXIT_FAILURE, InputError
 
-__all__ = ['build_parser', 'main']
+__all__ = ['build_parser', 'main', 'describe_os_error', 'USER_PATH_ERRNOS']
+
+#: OSError numbers that mean a path the user named cannot be used (exit 2); any other
+#: OSError (a full disk, an I/O error) is a fault of the machine (exit 1).
+USER_PATH_ERRNOS = frozenset({
+    errno.ENOENT, errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.EACCES, errno.EPERM, errno.EROFS,
+    errno.ENAMETOOLONG, errno.ELOOP, errno.ENOTEMPTY,
+})
+# The temporary file of an atomic write (io/atomic_files.py): ".NAME.RANDOM.tmp".
+_TEMPORARY_NAME = re.compile(r"^\.(?P<name>.+)\.[A-Za-z0-9_]+\.tmp$")
 
 # Modules that each add one subcommand, in the order --help lists them. A module that
 # is missing (a later issue not yet shipped) is simply skipped.
@@ -62,6 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     parser.add_argument("--version", action="version", version=f"drake-lfd {__version__}")
+    parser.add_argument("--debug", action="store_true",
+                        help="show the Python traceback of an internal error")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for module_name in _COMMAND_MODULES:
         try:
@@ -73,22 +95,169 @@ def build_parser() -> argparse.ArgumentParser:
         module.add_parser(subparsers)
     for command_parser in _parsers_of(parser):  # every command's --help shows the defaults
         command_parser.formatter_class = HelpFormatter
+        if command_parser is not parser and "--debug" not in command_parser._option_string_actions:
+            command_parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                                        help="show the Python traceback of an internal error")
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return EXIT_BAD_INPUT
+def describe_os_error(error: OSError) -> str:
+    """``FILE: what went wrong`` for an OSError, naming the file the user asked for (not
+    the temporary file of an atomic write)."""
+    problem = error.strerror or str(error)
+    filename = error.filename
+    if filename is None:
+        return problem
+    path = os.fsdecode(filename)
+    match = _TEMPORARY_NAME.match(os.path.basename(path))
+    if match:
+        path = os.path.join(os.path.dirname(path), match.group("name"))
+    if len(path) > 160:
+        path = path[:80] + "..." + path[-40:]
+    return f"{path}: {problem}"
+
+
+def _caused_by_interrupt(error: BaseException) -> bool:
+    """Whether ``error`` was raised while handling, or because of, a KeyboardInterrupt."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return False
+
+
+_INTERRUPTED = False
+
+
+def _interrupted(command: str, argv) -> int:
+    """Says ``COMMAND: interrupted``; the exit status of an interrupt."""
+    global _INTERRUPTED
+    _INTERRUPTED = True
+    if argv is None:  # the console command: a second Ctrl-C must not interrupt the exit
+        _ignore_further_interrupts()
+    _say(f"{command}: interrupted")
+    return EXIT_FAILURE
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _interrupts_deferred():
+    """Ctrl-C and SIGTERM wait until the block is done, then interrupt. For the imports of
+    start-up: an interrupt inside pydrake's native initialisation makes Drake log a
+    40-line stack of its own before Python sees it."""
+    received = []
     try:
+        previous = {signum: signal.signal(signum, lambda number, frame: received.append(number))
+                    for signum in (signal.SIGINT, signal.SIGTERM)}
+    except (ValueError, OSError):  # not the main thread: nothing to defer
+        yield
+        return
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    if received:
+        raise KeyboardInterrupt
+
+
+def _ignore_further_interrupts() -> None:
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        try:
+            signal.signal(signum, signal.SIG_IGN)
+        except (ValueError, OSError):  # not the main thread
+            pass
+
+
+def _say(line: str) -> None:
+    """Prints one line on stderr; a closed stderr is ignored."""
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
+def _silence_stdout() -> None:
+    """After a broken pipe: point stdout at /dev/null so the interpreter's last flush
+    does not fail again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Runs one ``drake-lfd`` command; returns its exit status (docs/cli.rst)."""
+    global _INTERRUPTED
+    _INTERRUPTED = False
+    try:
+        previous_sigterm = signal.signal(signal.SIGTERM, _raise_interrupt)  # SIGTERM behaves like Ctrl-C
+    except (ValueError, OSError):  # not the main thread (main() called by a test or a tool)
+        previous_sigterm = None
+    try:
+        status = _run(argv)
+    finally:
+        if previous_sigterm is not None:
+            try:
+                signal.signal(signal.SIGTERM, previous_sigterm)
+            except (ValueError, OSError, TypeError):
+                pass
+    if argv is None and _INTERRUPTED:
+        # The console command was interrupted. If the interrupt went through an embedded
+        # interpreter call (pybind11 importing pydrake), Python would end the process by
+        # SIGINT instead of this status; exit here, everything already closed and said.
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(status)
+    return status
+
+
+def _run(argv: list[str] | None) -> int:
+    command = "drake-lfd"
+    debug = "--debug" in (sys.argv[1:] if argv is None else argv)
+    try:
+        with _interrupts_deferred():  # native imports (pydrake) must not be cut half-way
+            parser = build_parser()
+        args = parser.parse_args(argv)
+        debug = getattr(args, "debug", False)
+        if not getattr(args, "func", None):
+            parser.print_help()
+            return EXIT_BAD_INPUT
+        command = f"drake-lfd {args.command}"
         return int(args.func(args) or 0)
     except InputError as error:
-        print(f"drake-lfd {args.command}: error: {error}", file=sys.stderr)
+        _say(f"{command}: error: {error}")
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        print(f"drake-lfd {args.command}: interrupted", file=sys.stderr)
+        return _interrupted(command, argv)
+    except BrokenPipeError:
+        _silence_stdout()
+        return EXIT_FAILURE
+    except OSError as error:
+        if debug:
+            raise
+        _say(f"{command}: error: {describe_os_error(error)}")
+        return EXIT_BAD_INPUT if error.errno in USER_PATH_ERRNOS else EXIT_FAILURE
+    except SystemExit:
+        raise
+    except Exception as error:  # an internal error: one line, the traceback with --debug
+        if _caused_by_interrupt(error):  # pybind11 turns Ctrl-C inside an import into ImportError
+            return _interrupted(command, argv)
+        if debug:
+            raise
+        text = " ".join(str(error).split())
+        if len(text) > 300:
+            text = text[:297] + "..."
+        _say(f"{command}: internal error: {type(error).__name__}: {text} (run with --debug for the traceback)")
         return EXIT_FAILURE
 
 

@@ -2,16 +2,22 @@
 
 Each raises an :class:`~drake_lfd.core.errors.InputError` naming the option, so the command
 exits with status 2 and one line. :func:`prepare_output` is the one place that decides how
-an output path is made ready (missing folders created), for every command.
+an output path is made ready (missing folders created, writability checked), for every
+command, before the command does any work.
 """
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
 
 from drake_lfd.core.errors import InputError
 
-__all__ = ['require_at_least', 'require_seed', 'prepare_output', 'require_folder_of', 'library_help']
+__all__ = [
+    'require_at_least', 'require_seed', 'prepare_output', 'require_folder_of', 'require_writable_folder',
+    'library_help', 'require_meshcat',
+]
 
 
 def library_help(what: str = "library directory") -> str:
@@ -46,6 +52,34 @@ def _make_folder(folder: Path, path: Path, option: str) -> None:
         raise InputError(f"cannot create the folder {folder}: {reason}", file=str(path), field=option) from None
 
 
+def require_writable_folder(folder: Path, path: Path, option: str) -> None:
+    """Refuses (one line) a folder in which a file cannot be created: creates and removes
+    a small temporary file there, the way every write of drake-lfd starts (an atomic
+    write creates its temporary file beside the target), so read-only file systems,
+    permissions and special folders are all caught, also for root."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".drake-lfd-write-check.", suffix=".tmp", dir=folder)
+    except OSError as error:
+        reason = error.strerror or str(error)
+        raise InputError(f"cannot write into the folder {folder}: {reason}", file=str(path), field=option) from None
+    os.close(fd)
+    try:
+        os.unlink(probe)
+    except OSError:
+        pass
+
+
+def require_meshcat(what: str, *, optional: bool = True) -> None:
+    """Refuses ``what`` (an option such as ``--html``, or a command) with one line, exit
+    2, when ``DRAKE_ALLOW_NETWORK`` disables Drake's Meshcat, which a recording needs
+    (:mod:`drake_lfd.core.network_policy`); before any work is done."""
+    from drake_lfd.core.network_policy import meshcat_refusal
+
+    refusal = meshcat_refusal(what, optional=optional)
+    if refusal is not None:
+        raise InputError(refusal, field=what if optional else None)
+
+
 def prepare_output(path: str | Path | None, option: str, *, folder: bool = False) -> Path | None:
     """Makes an output path of a command ready to be written, before any work is done.
 
@@ -54,8 +88,10 @@ def prepare_output(path: str | Path | None, option: str, *, folder: bool = False
     ``train --out POLICY``, ...) the folders it goes into, for a folder (``simulate
     --figures DIR``, ``paper --out DIR``) the folder itself. It refuses, with an
     :class:`InputError` (one line, exit 2), only when that cannot be done: a file is
-    asked for where a folder exists, a folder where a file exists, or creating a folder
-    fails (a file in the way, no permission).
+    asked for where a folder exists, a folder where a file exists, creating a folder
+    fails (a file in the way, no permission), or a file cannot be created in the folder
+    (:func:`require_writable_folder`: read-only, no permission, a special folder such as
+    ``/proc``), or the file's name is too long for the file system.
 
     Parameters
     ----------
@@ -78,11 +114,26 @@ def prepare_output(path: str | Path | None, option: str, *, folder: bool = False
         if path.exists() and not path.is_dir():
             raise InputError("exists and is not a folder", file=str(path), field=option)
         _make_folder(path, path, option)
+        require_writable_folder(path, path, option)
         return path
     if path.is_dir():
         raise InputError("is a folder; give the path of the file to write", file=str(path), field=option)
     _make_folder(path.parent, path, option)
+    require_writable_folder(path.parent, path, option)
+    _require_name_fits(path, option)
     return path
+
+
+def _require_name_fits(path: Path, option: str) -> None:
+    """The file's name, and its atomic write's temporary name, fit the file system."""
+    try:
+        limit = os.pathconf(path.parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    # atomic writes use ".NAME.XXXXXXXX.tmp" (io/atomic_files.py)
+    if len(os.fsencode(path.name)) + 14 > limit:
+        raise InputError(f"the file name is too long ({len(path.name)} characters; at most {limit - 14} here)",
+                         file=str(path)[:80] + "...", field=option)
 
 
 def require_folder_of(path: str | Path | None, option: str) -> None:

@@ -12,7 +12,9 @@ A thin front end over :mod:`drake_lfd.io.library` (documented in docs/cli.rst):
   match it (they can never change it: that would silently invalidate every feature). ``--keep-all-rows``
   skips the ``runtime_state`` filter. Warnings about the log (a cut-off last line that
   was dropped) go to stderr after a successful add; a refused add prints one error line
-  and leaves the library exactly as it was.
+  and leaves the library exactly as it was (a refused add to a new directory creates
+  nothing). Concurrent ``add`` and ``remove`` on one library take turns (the library's
+  lock, :mod:`drake_lfd.io.library`).
 - ``library show LIB [--json OUT]`` prints a table: per demonstration its samples,
   duration and the rotation of its feature at the start, middle and three quarters of
   the way (``delta`` at 0, 50 and 75 % of the resampled motion, like the paper's Table
@@ -24,7 +26,9 @@ A thin front end over :mod:`drake_lfd.io.library` (documented in docs/cli.rst):
   also names the bundled libraries and where they are installed.
 - ``library copy SRC DIR`` makes an editable copy of a bundled library (or of any
   library directory) in a new or empty directory (``io.library.copy_library``).
-- ``library remove LIB NAME`` removes one demonstration.
+- ``library remove LIB NAME`` removes one demonstration; it works on an entry whose
+  joint log is missing or disagrees with the manifest (which every other command
+  refuses), so the command line can repair a library.
 
 Not for: the library's files and their guarantees (:mod:`drake_lfd.io.library`), the
 other commands (one module each in ``drake_lfd/cli``).
@@ -49,9 +53,10 @@ from drake_lfd.io.library import (
     bundled_library_names,
     bundled_library_paths,
     copy_library,
+    is_unused_library_directory,
     tool_frame_options,
 )
-from drake_lfd.io.library_manifest import MANIFEST_NAME, check_demo_name
+from drake_lfd.io.library_manifest import check_demo_name
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
 from drake_lfd.io.yaml_checks import angle_from_text
 
@@ -202,7 +207,7 @@ def _check_same_frame(library, p, euler):
 def _is_new_library(path_text):
     path = Path(path_text)
     if path.is_dir():
-        return not (path / MANIFEST_NAME).exists() and not any(path.iterdir())
+        return is_unused_library_directory(path)
     return not path.exists() and path_text not in bundled_library_names()
 
 
@@ -215,13 +220,15 @@ def run_add(args):
     demonstration, warnings = read_rtde_csv(
         args.log, name=args.name, description=args.description, filter_runtime_state=not args.keep_all_rows
     )
-    if new:
-        library = Library.create(args.library, X_tool0_E=X_tool0_E)
+    if new:  # checks the demonstration before it creates anything
+        library, entry = Library.create_with(
+            args.library, demonstration, args.name, args.description, X_tool0_E=X_tool0_E, source=args.log
+        )
     else:
         library = Library.open(args.library)
         if not library.read_only:  # a bundled one is refused for that, with a hint to copy it
             _check_same_frame(library, p, euler)
-    entry = library.add(demonstration, args.name, args.description)
+        entry = library.add(demonstration, args.name, args.description, source=args.log)
     for warning in warnings:
         print(f"drake-lfd library: warning: {warning}", file=sys.stderr)
     print(
@@ -385,7 +392,8 @@ def run_copy(args):
 
 
 def run_remove(args):
-    library = Library.open(args.library)
+    # Not checked against the logs: removing an entry whose log is gone repairs the library.
+    library = Library.open(args.library, check_logs=False)
     library.remove(args.name)
     print(f"removed {args.name!r} from {library.label}")
     return EXIT_OK

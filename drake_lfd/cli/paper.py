@@ -1,4 +1,8 @@
-"""``drake-lfd paper``: the paper's Section 6 end to end, with a report."""
+"""``drake-lfd paper``: the paper's Section 6 end to end, with a report.
+
+The output folder is checked for writability before any work; every closed-loop trial is
+kept in ``DIR/trials.jsonl`` as it finishes (:mod:`drake_lfd.experiments.paper`).
+"""
 
 from __future__ import annotations
 
@@ -18,7 +22,8 @@ def add_parser(subparsers) -> None:
         ),
     )
     parser.add_argument("--out", default="paper_results", metavar="DIR",
-                        help="output folder for report.md, results.json, figures and recordings (created if missing)")
+                        help="output folder for report.md, results.json, trials.jsonl (each trial as it finishes), "
+                             "figures and recordings (created if missing)")
     parser.add_argument("--trials", type=int, default=20, metavar="N", help="closed-loop trials per task, >= 1")
     parser.add_argument("--seed", type=int, default=0, metavar="S", help="seeds the training and the trials")
     parser.set_defaults(func=run)

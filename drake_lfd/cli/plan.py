@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from drake_lfd.cli.argument_checks import library_help, prepare_output, require_seed
-from drake_lfd.io.atomic_files import atomic_write_json
-from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, InputError
+from drake_lfd.io.strict_json import write_json
+from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, EXIT_NO_EXECUTABLE_PLAN, InputError
 from drake_lfd.planning.planner import PLANNERS
 
 
@@ -78,8 +78,10 @@ def load_policy_for(args, library=None):
 
 def run(args) -> int:
     from drake_lfd.io.library import Library, check_end_effector_frame, library_features
-    from drake_lfd.io.plan_json import describe_uncovered, plan_json
+    from drake_lfd.io.plan_json import describe_infeasible, describe_uncovered, plan_json
     from drake_lfd.planning.planner import plan_task
+    from drake_lfd.diagrams.pipeline import joint_path_checker
+    from drake_lfd.robot.workcell import Workcell
     from drake_lfd.core.tasks import draw_trial
     from drake_lfd.io.task_files import load_task
 
@@ -91,9 +93,12 @@ def run(args) -> int:
     policy = load_policy_for(args, library)
     trial = draw_trial(task, args.seed)
     library.write_feature_caches()
-    result = plan_task(trial, library_features(library), planner=args.planner, policy=policy, seed=args.seed)
+    # The work cell the pipeline of ``simulate`` builds, so this plan is the one it runs.
+    workcell = Workcell.of(trial)
+    result = plan_task(trial, library_features(library), planner=args.planner, policy=policy, seed=args.seed,
+                       floor_z=workcell.planner_floor, checker=joint_path_checker(workcell, task.simulation))
     if args.json:
-        atomic_write_json(Path(args.json), plan_json(result))
+        write_json(Path(args.json), plan_json(result))
     if result.planned:
         chain = " + ".join(f"{s.demo} (con_{s.con_from}->con_{s.con_to})" for s in result.composition)
         print(f"{task.name}: planned with {chain}; total cost {result.total_cost:.3f}, "
@@ -103,6 +108,12 @@ def run(args) -> int:
         if result.fallback:
             print(f"note: the greedy Q-walk dead-ended; the {result.fallback} planner completed the plan")
         return 0
+    if result.status == "no_executable_plan":
+        # One line per blocking segment (the library covers the task; the UR5e cannot
+        # run any composition of it).
+        for line in describe_infeasible(result):
+            print(f"{task.name}: no executable plan: {line}"[:300], file=sys.stderr)
+        return EXIT_NO_EXECUTABLE_PLAN
     print(f"{task.name}: library {library.label} cannot cover the task; please demonstrate:")
     for line in describe_uncovered(result):
         print("  " + line)

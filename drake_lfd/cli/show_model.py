@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_lfd.cli.argument_checks import prepare_output
+from drake_lfd.cli.argument_checks import prepare_output, require_meshcat
 from drake_lfd.core.errors import InputError
 
 __all__ = ['add_parser', 'run']
@@ -31,6 +31,7 @@ def run(args) -> int:
     q_keyframes = SHOWCASE_CONFIGURATIONS if not args.q else np.array(args.q)
     if not np.all(np.isfinite(q_keyframes)):
         raise InputError("joint angles must be finite numbers", field="--q")
+    require_meshcat("show-model", optional=False)
     out = prepare_output(args.out, "--out")
     write_configurations_html(out, q_keyframes)
     print(f"wrote {out} ({out.stat().st_size / 1e6:.1f} MB); open it in a browser")

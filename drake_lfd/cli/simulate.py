@@ -1,17 +1,21 @@
 """``drake-lfd simulate``: closed-loop UR5e runs of N concrete trials of a task.
 
-A thin front end (docs/cli.rst): it loads the task and the library, refreshes the
-library's feature caches, runs the trials and writes what was asked. Not for: running
-or judging trials (:mod:`drake_lfd.experiments.simulation`).
+A thin front end (docs/cli.rst): it checks every output path first, loads the task and
+the library, refreshes the library's feature caches, runs the trials and writes what was
+asked. With ``--json OUT.json`` each finished trial is also appended, as it finishes, to
+``OUT.jsonl`` (:mod:`drake_lfd.io.json_lines`), so an interrupt (Ctrl-C, SIGTERM) or a
+late error keeps every trial that ran; the per-trial lines printed so far are printed
+then too. Not for: running or judging trials (:mod:`drake_lfd.experiments.simulation`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from drake_lfd.cli.argument_checks import prepare_output, require_at_least, require_seed
-from drake_lfd.io.atomic_files import atomic_write_json
-from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, InputError
+from drake_lfd.cli.argument_checks import prepare_output, require_at_least, require_meshcat, require_seed
+from drake_lfd.io.json_lines import JsonLinesFile, json_lines_path_for
+from drake_lfd.io.strict_json import write_json
+from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, EXIT_NO_EXECUTABLE_PLAN, EXIT_OK, InputError
 from drake_lfd.cli.plan import add_planning_arguments, load_policy_for
 
 
@@ -33,7 +37,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="the first trial's seed (trial i, from 0, uses S + i)")
     parser.add_argument("--json", metavar="OUT",
-                        help="write the results, every failure reason in full, as JSON (missing folders are created)")
+                        help="write the results, every failure reason in full, as JSON (missing folders are created); "
+                             "each trial is also appended to OUT's .jsonl file as it finishes")
     parser.add_argument("--html", metavar="REC.html",
                         help="write a Meshcat recording of the first trial that runs (missing folders are created)")
     parser.add_argument("--figures", metavar="DIR",
@@ -45,11 +50,15 @@ def add_parser(subparsers) -> None:
 def run(args) -> int:
     from drake_lfd.io.library import Library, check_end_effector_frame, library_features
     from drake_lfd.cli.progress import ProgressBar
-    from drake_lfd.experiments.simulation import run_trials, simulate_json, trial_summary_line, write_trial_figures
+    from drake_lfd.experiments.simulation import (
+        run_trials, simulate_json, trial_record, trial_summary_line, write_trial_figures,
+    )
     from drake_lfd.io.task_files import load_task
 
     require_at_least(args.trials, 1, "--trials")
     require_seed(args.seed)
+    if args.html:
+        require_meshcat("--html")
     prepare_output(args.json, "--json")
     prepare_output(args.html, "--html")
     prepare_output(args.figures, "--figures", folder=True)
@@ -57,32 +66,51 @@ def run(args) -> int:
     library = Library.open(args.library)
     check_end_effector_frame(library, task.X_tool0_E, file=args.task)
     policy = load_policy_for(args, library)
-    bar = ProgressBar("trials", args.trials)
     lines = []
+    finished = JsonLinesFile(json_lines_path_for(args.json)) if args.json else None
+    try:
+        bar = ProgressBar("trials", args.trials)
 
-    def progress(done, total, outcome):
-        lines.append(trial_summary_line(outcome, task))
-        bar.update(done, "ok" if outcome.success else "failed")
+        def progress(done, total, outcome):
+            lines.append(trial_summary_line(outcome, task))
+            if finished is not None:
+                finished.append(trial_record(task, outcome))
+            bar.update(done, "ok" if outcome.success else "failed")
 
-    library.write_feature_caches()
-    outcomes, wall = run_trials(
-        task, library_features(library), trials=args.trials, seed=args.seed, planner=args.planner,
-        policy=policy, record_html=args.html, progress=progress,
-    )
-    bar.close()
+        library.write_feature_caches()
+        outcomes, wall = run_trials(
+            task, library_features(library), trials=args.trials, seed=args.seed, planner=args.planner,
+            policy=policy, record_html=args.html, progress=progress,
+        )
+        bar.close()
+    except BaseException:
+        # Interrupted (or failed) part-way: say what finished and where it is kept.
+        for line in lines:
+            print(line, flush=True)
+        if finished is not None and finished.count:
+            print(f"{task.name}: {finished.count} finished trial(s) of {args.trials} are in {finished.path}",
+                  flush=True)
+        raise
+    finally:
+        if finished is not None:
+            finished.close()
     document = simulate_json(task, outcomes, wall)
     first = next((o for o in outcomes if o.run is not None), None)
     if args.figures and first is not None:
         write_trial_figures(task, first, Path(args.figures), task.name)
     if args.json:
-        atomic_write_json(Path(args.json), document)
+        write_json(Path(args.json), document)
     for line in lines:
         print(line)
     print(f"{task.name}: {document['success_count']}/{args.trials} trials succeeded "
           f"({document['sim_time_s']:.1f} s simulated in {wall:.1f} s)")
-    if all(o.plan is not None and not o.plan.planned for o in outcomes):
+    # 0: every trial succeeded; 3: every trial needs a demonstration the library lacks;
+    # 4: anything else (a trial without an executable plan, or one that failed).
+    if outcomes and all(o.success for o in outcomes):
+        return EXIT_OK
+    if outcomes and all(o.plan is not None and o.plan.status == "demonstration_requested" for o in outcomes):
         return EXIT_DEMONSTRATION_REQUESTED
     if all(o.run is None and o.plan is not None and o.plan.planned for o in outcomes):
         raise InputError(outcomes[0].failures[0] if outcomes[0].failures else "no trial could run",
                          file=args.task)
-    return 0
+    return EXIT_NO_EXECUTABLE_PLAN

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_lfd.cli.argument_checks import library_help, prepare_output, require_at_least, require_seed
-from drake_lfd.io.atomic_files import atomic_write_json
+from drake_lfd.io.strict_json import write_json
 from drake_lfd.core.errors import InputError
 from drake_lfd.planning.training import DEFAULT_CHAINED_TASKS
 
@@ -118,7 +118,7 @@ def run(args) -> int:
         "table_entries": len(result.policy.values),
     }
     if args.json:
-        atomic_write_json(Path(args.json), summary)
+        write_json(Path(args.json), summary)
     if steady is None:
         spread = float(np.ptp(result.greedy_curve[-10:]))
         steadiness = (f"not steady within {args.episodes} episodes: the greedy reward still changed by "

@@ -17,6 +17,7 @@ __all__ = [
     "EXIT_FAILURE",
     "EXIT_BAD_INPUT",
     "EXIT_DEMONSTRATION_REQUESTED",
+    "EXIT_NO_EXECUTABLE_PLAN",
     "InputError",
 ]
 
@@ -28,6 +29,9 @@ EXIT_FAILURE = 1
 EXIT_BAD_INPUT = 2
 #: Command-line exit status: no composition covers the task; a demonstration is requested.
 EXIT_DEMONSTRATION_REQUESTED = 3
+#: Command-line exit status: demonstrations cover the task but no composition is
+#: executable by the robot (reach, joint limits, singularity, collision).
+EXIT_NO_EXECUTABLE_PLAN = 4
 
 
 class InputError(Exception):

@@ -9,7 +9,9 @@ Eq. 17; :func:`rigid_transform_from_euler_zyx`) is fixed or bounded, a bounded o
 a freedom the planner chooses among :func:`angle_candidates`. :func:`draw_trial` draws a
 :class:`ConcreteTask` (every position fixed, bounded angles still free) from a task and a
 seed; :meth:`ConcreteTask.from_fixed` builds one directly (random training tasks).
-Obstacles and keep-out safety shells are axis-aligned :class:`Box` es in W.
+Obstacles and keep-out safety shells are :class:`Box` es in W, axis-aligned unless
+given a ``rotation``; a task's ``tool`` is its shapes fixed to ``tool0``
+(:mod:`drake_lfd.core.tool`; None: the default sized from ``X_tool0_E``).
 
 The meaning of tasks is in docs/method.rst (Tasks); the file format in
 docs/task_files.rst.
@@ -24,7 +26,7 @@ import itertools
 import math
 
 import numpy as np
-from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.read_only_arrays import read_only_array
@@ -40,6 +42,7 @@ __all__ = [
     "ConcreteCriticalConfiguration",
     "ConcreteTask",
     "rigid_transform_from_euler_zyx",
+    "angle_grid_count",
     "angle_grid",
     "angle_candidates",
     "draw_trial",
@@ -62,15 +65,54 @@ def rigid_transform_from_euler_zyx(p, euler_zyx):
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Box:
-    """An axis-aligned box: ``centre`` (3,) and full edge lengths ``size`` (3,), metres."""
+    """A box: ``centre`` (3,) and full edge lengths ``size`` (3,), metres, its edges along
+    the columns of ``rotation`` (3, 3), the box frame's axes in W (default identity:
+    axis-aligned)."""
 
     name: str
     centre: np.ndarray
     size: np.ndarray
+    rotation: np.ndarray = dataclasses.field(default_factory=lambda: np.eye(3))
 
     def __post_init__(self):
         object.__setattr__(self, "centre", read_only_array(self.centre, (3,)))
         object.__setattr__(self, "size", read_only_array(self.size, (3,)))
+        rotation = self.rotation
+        if isinstance(rotation, RotationMatrix):
+            rotation = rotation.matrix()
+        object.__setattr__(self, "rotation", read_only_array(rotation, (3, 3)))
+        if not np.allclose(self.rotation.T @ self.rotation, np.eye(3), rtol=0.0, atol=1e-9):
+            raise ValueError("Box.rotation must be a rotation matrix")
+
+    @property
+    def is_axis_aligned(self) -> bool:
+        return bool(np.array_equal(self.rotation, np.eye(3)))
+
+    @property
+    def X_WBox(self) -> RigidTransform:
+        """The box frame (centre, axes along the edges) in W."""
+        return RigidTransform(RotationMatrix(np.array(self.rotation)), np.array(self.centre))
+
+    def _local(self, points) -> np.ndarray:
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        return (points - self.centre) @ self.rotation  # rows: R^T (p - centre)
+
+    def signed_distance(self, points) -> np.ndarray:
+        """Signed distance of points (n, 3) in W to the box (negative inside), (n,), m."""
+        q = np.abs(self._local(points)) - self.size / 2.0
+        outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+        return outside + np.minimum(q.max(axis=1), 0.0)
+
+    def height_above_top(self, points) -> np.ndarray:
+        """Height of points (n, 3) above the plane of the box's top face (the face its
+        own +z axis points out of), (n,), m: a table top as an unbounded floor."""
+        return self._local(points)[:, 2] - self.size[2] / 2.0
+
+    def corners(self) -> np.ndarray:
+        """The 8 corners in W, shape (8, 3), ordered as ``itertools.product((-1, 1),
+        repeat=3)`` of the half edges."""
+        signs = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
+        return self.centre + (signs * (self.size / 2.0)) @ self.rotation.T
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -133,6 +175,9 @@ class Task:
     # The task file's optional ``simulation:`` block, checked: an
     # ``io.simulation_config.PipelineConfig`` (None: the defaults).
     simulation: object = None
+    # The tool's shapes on tool0 (tuple of core.tool.ToolShape); None: the default
+    # sized from X_tool0_E (core.tool.default_tool), () for no tool geometry.
+    tool: tuple | None = None
 
     def __len__(self):
         return len(self.critical_configurations)
@@ -196,6 +241,7 @@ class ConcreteTask:
     seed: int | None = None
     variable_values: dict = dataclasses.field(default_factory=dict)  # name -> drawn value
     file: str | None = None
+    tool: tuple | None = None  # as Task.tool
 
     def __post_init__(self):
         object.__setattr__(self, "critical_configurations", tuple(self.critical_configurations))
@@ -243,11 +289,20 @@ def angle_grid(lower, upper, step_rad):
     -------
     angles : array, shape (k,)
     """
+    count = angle_grid_count(lower, upper, step_rad)
+    if count == 1:
+        return np.array([float(lower)])
+    return np.linspace(float(lower), float(upper), count)
+
+
+def angle_grid_count(lower, upper, step_rad):
+    """How many samples :func:`angle_grid` gives, computed without making them (a
+    Python int, however large: ``planning/problem_size.py`` checks it before anything
+    is allocated)."""
     span = float(upper) - float(lower)
     if span <= 0.0:
-        return np.array([float(lower)])
-    count = int(math.ceil(span / step_rad - 1e-9)) + 1
-    return np.linspace(float(lower), float(upper), count)
+        return 1
+    return int(math.ceil(span / step_rad - 1e-9)) + 1
 
 
 def angle_candidates(con):
@@ -326,4 +381,5 @@ def draw_trial(task, seed):
         seed=int(seed),
         variable_values=values,
         file=task.file,
+        tool=task.tool,
     )

@@ -251,8 +251,7 @@ class ClosedLoopRunner:
         station = pipeline.station
         self.kinematics = UR5eKinematics(X_WB=station.X_WB, X_tool0_E=station.X_tool0_E)
         # The collision scene of the initial inverse kinematics, built once for all trials.
-        self._ik_scene = KinematicScene(X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
-                                        obstacles=station.obstacles, safety_shells=station.safety_shells)
+        self._ik_scene = KinematicScene(station.workcell)
         self._velocity_limits = station.plant.GetVelocityUpperLimits()[:NUM_JOINTS].copy()
 
     def plan(self, task: ConcreteTask | None = None) -> ScheduledPlan:
@@ -284,9 +283,10 @@ class ClosedLoopRunner:
         task : ConcreteTask, optional
             Required unless the pipeline was built with a given plan.
         q_initial : array, shape (6,), optional
-            Initial joint positions; inverse kinematics of the plan's first pose (elbow
-            up) when absent (raises ``UnreachableConfigurationError``, an InputError, if
-            unreachable).
+            Initial joint positions; when absent, the start of the plan's checked joint
+            path, or (a plan made without the check) inverse kinematics of the plan's
+            first pose, elbow up (raises ``UnreachableConfigurationError``, an
+            InputError, if unreachable).
         record_html : path, optional
             Write a self-contained Meshcat replay there (needs ``record_meshcat``).
         scheduled : ScheduledPlan, optional
@@ -312,6 +312,11 @@ class ClosedLoopRunner:
         context = simulator.get_mutable_context()
         X_WE_start = scheduled.X_WE_desired(0.0)
         initial_configuration = None
+        joint_path = scheduled.result.joint_path
+        if q_initial is None and joint_path is not None:
+            # The plan-time check chose the start (IK branch and windings) for the whole
+            # plan: start where its joint path starts.
+            q_initial = joint_path.q[0]
         if q_initial is None:
             initial_configuration = solve_initial_configuration(
                 X_WE_start, X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
@@ -402,6 +407,7 @@ def run_closed_loop(
     obstacles=(),
     safety_shells=(),
     table: bool = False,
+    tool=None,
     q_initial: np.ndarray | None = None,
     record_html: str | Path | None = None,
     config: PipelineConfig | None = None,
@@ -412,7 +418,8 @@ def run_closed_loop(
     """Simulates the UR5e tracking a given ``plan`` (no planner) in its scene.
 
     Builds a pipeline with the plan as a constant source (``table``: put the table under
-    the robot) and runs it once; see :meth:`ClosedLoopRunner.run`. ``controller``
+    the robot; ``tool``: the shapes on ``tool0``, None for the default of ``X_tool0_E``)
+    and runs it once; see :meth:`ClosedLoopRunner.run`. ``controller``
     (method), ``time_step`` (plant step) and ``stop_on_penetration`` override ``config``.
     """
     config = PipelineConfig() if config is None else copy.deepcopy(config)
@@ -424,6 +431,7 @@ def run_closed_loop(
         config.monitor.stop_on_penetration = bool(stop_on_penetration)
     meshcat = Meshcat() if record_html is not None else None
     pipeline = build_pipeline(plan=plan, X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles,
-                              safety_shells=safety_shells, with_table=table, config=config, meshcat=meshcat)
+                              safety_shells=safety_shells, tool=tool, with_table=table, config=config,
+                              meshcat=meshcat)
     _, result = ClosedLoopRunner(pipeline, record_meshcat=meshcat).run(q_initial=q_initial, record_html=record_html)
     return result

@@ -10,8 +10,10 @@
     Station --query_object, ur5e.position_measured--> ShellMonitor
     Station --ur5e.state--> joint logger
 
-The scene (robot base, table under it, obstacles, safety shells) is fixed when the
-Diagram is built; the task is an input, so one Diagram serves every trial of a task
+The scene (a :class:`~drake_lfd.robot.workcell.Workcell`: robot base, table under it,
+obstacles, safety shells, the tool) is fixed when the Diagram is built, and the planner
+system keeps the tool above the same table top (``Workcell.planner_floor``) that
+``drake-lfd plan`` uses; the task is an input, so one Diagram serves every trial of a task
 (``closed_loop.py`` runs them). With ``plan=`` instead of a library, a constant plan
 replaces the library and planner (for trying the closed loop on a given motion).
 
@@ -38,15 +40,26 @@ from drake_lfd.diagrams.station import Station
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan
+from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME
-from drake_lfd.robot.scene import table_under_robot
+from drake_lfd.robot.workcell import Workcell, table_under_robot
 from drake_lfd.systems.differential_ik import DifferentialIKController
 from drake_lfd.systems.feature_library import FeatureLibrarySystem
 from drake_lfd.systems.plan_trajectory_source import PlanTrajectorySource
 from drake_lfd.systems.planner import PlannerSystem
 from drake_lfd.systems.shell_monitor import ShellMonitor
 
-__all__ = ["Pipeline", "build_pipeline", "scheduled_plan_from_timed"]
+__all__ = ["Pipeline", "build_pipeline", "joint_path_checker", "scheduled_plan_from_timed"]
+
+
+def joint_path_checker(workcell: Workcell, config: PipelineConfig | None = None) -> JointPathChecker:
+    """The plan-time joint-space check of ``workcell`` with the closed loop's controller
+    (period, gain, speed fraction of ``config``), so a checked plan's joint path is the
+    one the controller will command."""
+    controller = (PipelineConfig() if config is None else config).checked().controller
+    return JointPathChecker.for_workcell(workcell, time_step=controller.time_step,
+                                         position_gain=controller.position_gain,
+                                         velocity_limit_fraction=controller.velocity_limit_fraction)
 
 
 def scheduled_plan_from_timed(plan: TimedPlan, start_time_s: float = 0.0) -> ScheduledPlan:
@@ -83,8 +96,13 @@ class Pipeline(Diagram):
 
     Parameters
     ----------
+    workcell : Workcell, optional
+        The whole scene; when given, ``X_WB``, ``X_tool0_E``, ``obstacles``,
+        ``safety_shells``, ``tool`` and ``with_table`` are not used.
     X_WB, X_tool0_E : RigidTransform, optional
     obstacles, safety_shells : iterable of Box
+    tool : tuple of ToolShape, optional
+        None: the default tool of ``X_tool0_E``.
     with_table : bool
         Put the table under the robot (it is also the floor the planner keeps the tool
         above).
@@ -105,16 +123,19 @@ class Pipeline(Diagram):
     station, library, planner, source, controller, monitor, logger
         The subsystems (``library`` and ``planner`` are None with a given ``plan``).
     config : PipelineConfig
+    workcell : Workcell
     table : Box or None
     """
 
     def __init__(
         self,
         *,
+        workcell: Workcell | None = None,
         X_WB: RigidTransform | None = None,
         X_tool0_E: RigidTransform | None = None,
         obstacles=(),
         safety_shells=(),
+        tool=None,
         with_table: bool = True,
         features: Mapping[str, Feature] | None = None,
         planner: str = "exact",
@@ -129,15 +150,18 @@ class Pipeline(Diagram):
         self.config = config
         if plan is None and features is None:
             raise ValueError("a pipeline needs a library (features) or a given plan")
-        X_WB = RigidTransform() if X_WB is None else RigidTransform(X_WB)
-        X_tool0_E = RigidTransform() if X_tool0_E is None else RigidTransform(X_tool0_E)
-        self.table: Box | None = table_under_robot(X_WB) if with_table else None
-        floor_z = None if self.table is None else float(self.table.centre[2] + self.table.size[2] / 2)
+        if workcell is None:
+            workcell = Workcell.make(X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles,
+                                     safety_shells=safety_shells, tool=tool,
+                                     table=table_under_robot(X_WB) if with_table else None)
+        self.workcell = workcell
+        X_tool0_E = workcell.X_tool0_E
+        self.table: Box | None = workcell.table
+        floor_z = workcell.planner_floor
 
         builder = DiagramBuilder()
         station = builder.AddNamedSystem("station", Station(
-            X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles, safety_shells=safety_shells,
-            table=self.table, meshcat=meshcat, config=config.station))
+            workcell=workcell, meshcat=meshcat, config=config.station))
         self.library = self.planner = None
         if plan is None:
             self.library = builder.AddNamedSystem("feature_library", FeatureLibrarySystem(
@@ -145,6 +169,7 @@ class Pipeline(Diagram):
                 check_period=config.planner.check_period))
             self.planner = builder.AddNamedSystem("planner", PlannerSystem(
                 planner=planner, policy=policy, start_time_s=config.settle_s, floor_z=floor_z,
+                checker=joint_path_checker(workcell, config),
                 check_period=config.planner.check_period))
             plan_port = self.planner.plan_output_port
         else:
@@ -201,11 +226,10 @@ class Pipeline(Diagram):
 
 def build_pipeline(task: ConcreteTask | None = None, features: Mapping[str, Feature] | None = None, *,
                    plan: TimedPlan | None = None, **kwargs) -> Pipeline:
-    """A :class:`Pipeline` for the scene of ``task`` (base, tool frame, obstacles and
-    shells; the critical configurations are set later through the ``task`` input)."""
-    if task is not None:
-        kwargs.setdefault("X_WB", task.X_WB)
-        kwargs.setdefault("X_tool0_E", task.X_tool0_E)
-        kwargs.setdefault("obstacles", tuple(task.obstacles))
-        kwargs.setdefault("safety_shells", tuple(task.safety_shells))
+    """A :class:`Pipeline` for the work cell of ``task`` (:meth:`Workcell.of
+    <drake_lfd.robot.workcell.Workcell.of>`: base, tool frame and tool, obstacles, shells,
+    the table unless ``with_table=False``; the critical configurations are set later
+    through the ``task`` input)."""
+    if task is not None and "workcell" not in kwargs:
+        kwargs["workcell"] = Workcell.of(task, with_table=kwargs.get("with_table", True))
     return Pipeline(features=features, plan=plan, **kwargs)

@@ -1,8 +1,9 @@
 """The simulated UR5e work cell: a position-controlled arm in its scene.
 
 :class:`Station` is a Diagram in the style of the manipulation course's hardware
-station (:func:`build_station` makes one): a discrete UR5e MultibodyPlant with the task's obstacles, safety shells
-and optional table (``scene.py``), a realistic position-controlled drive, SceneGraph and
+station (:func:`build_station` makes one): a discrete UR5e MultibodyPlant in its work cell
+(:class:`~drake_lfd.robot.workcell.Workcell`: obstacles, safety shells, the optional
+table, the tool on the flange; ``scene.py`` registers them), a realistic position-controlled drive, SceneGraph and
 an optional MeshcatVisualizer, with ports named ``<model>.<quantity>``. What feeds the
 position command (the differential-IK controller) and what watches the scene (the shell
 monitor) are wired outside, by ``closed_loop.py``.
@@ -53,6 +54,7 @@ from drake_lfd.core.tasks import Box
 from drake_lfd.io.simulation_config import DriveConfig, StationConfig
 from drake_lfd.robot.kinematics import NUM_JOINTS, UR5E_JOINT_NAMES, add_ur5e
 from drake_lfd.robot.scene import SceneGeometry, add_scene
+from drake_lfd.robot.workcell import Workcell
 
 __all__ = ["Station", "build_station", "configure_ur5e_drive"]
 
@@ -97,13 +99,17 @@ class Station(Diagram):
 
     Parameters
     ----------
+    workcell : Workcell, optional
+        The whole scene; when given, the next five parameters are not used.
     X_WB : RigidTransform, optional
         Robot base in W (identity by default).
     X_tool0_E : RigidTransform, optional
         End-effector frame E on ``tool0`` (identity by default).
     obstacles, safety_shells : iterable of :class:`drake_lfd.core.tasks.Box`
     table : Box, optional
-        See :func:`drake_lfd.robot.scene.table_under_robot`.
+        See :func:`drake_lfd.robot.workcell.table_under_robot`.
+    tool : tuple of ToolShape, optional
+        Shapes on ``tool0`` (None: the default of ``X_tool0_E``, ``()``: none).
     meshcat : Meshcat, optional
         Adds a MeshcatVisualizer (illustration role) when given.
     config : StationConfig, optional
@@ -124,29 +130,36 @@ class Station(Diagram):
     interpolator : StateInterpolatorWithDiscreteDerivative
     visualizer : MeshcatVisualizer or None
     config : StationConfig
+    workcell : Workcell
     X_WB, X_tool0_E : RigidTransform
     obstacles, safety_shells : tuple of Box
     table : Box or None
+        The work cell's, for short.
     """
 
     def __init__(
         self,
         *,
+        workcell: Workcell | None = None,
         X_WB: RigidTransform | None = None,
         X_tool0_E: RigidTransform | None = None,
         obstacles: Iterable[Box] = (),
         safety_shells: Iterable[Box] = (),
         table: Box | None = None,
+        tool=None,
         meshcat: Meshcat | None = None,
         config: StationConfig | None = None,
     ):
         super().__init__()
         config = StationConfig() if config is None else config
         self.config = config
-        self.X_WB = RigidTransform() if X_WB is None else RigidTransform(X_WB)
-        self.X_tool0_E = RigidTransform() if X_tool0_E is None else RigidTransform(X_tool0_E)
-        self.obstacles, self.safety_shells = tuple(obstacles), tuple(safety_shells)
-        self.table = table
+        if workcell is None:
+            workcell = Workcell.make(X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles,
+                                     safety_shells=safety_shells, table=table, tool=tool)
+        self.workcell = workcell
+        self.X_WB, self.X_tool0_E = workcell.X_WB, workcell.X_tool0_E
+        self.obstacles, self.safety_shells = workcell.obstacles, workcell.safety_shells
+        self.table = workcell.table
         name = config.model_name
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=config.time_step)
@@ -154,7 +167,7 @@ class Station(Diagram):
         model = add_ur5e(plant, X_WB=self.X_WB, X_tool0_E=self.X_tool0_E, model_name=name)
         configure_ur5e_drive(plant, model, config.drive)
         scene = add_scene(plant, scene_graph, model=model, obstacles=self.obstacles,
-                          safety_shells=self.safety_shells, table=table)
+                          safety_shells=self.safety_shells, table=self.table, tool=workcell.tool)
         plant.Finalize()
         # The gravity-compensation output is in joint (velocity) order; the actuation
         # input is in actuator order. They coincide for the shipped URDF; make sure.

@@ -86,13 +86,16 @@ def training_curve_figure(path, curve, *, steady_episode=None, exploring=None,
 
 
 # ----------------------------------------------------------------------- SE(3) plan
-def _box_edges(centre, size):
-    """The 12 edges of an axis-aligned box, as (2, 3) segments."""
-    half = np.asarray(size, dtype=float) / 2.0
-    corners = np.array([np.asarray(centre) + half * s for s in itertools.product((-1, 1), repeat=3)])
+def _box_edges(box):
+    """The 12 edges of a box (turned by its ``rotation``, if it has one), as (2, 3)
+    segments."""
+    signs = np.array(list(itertools.product((-1, 1), repeat=3)))
+    half = np.asarray(box.size, dtype=float) / 2.0
+    rotation = np.asarray(getattr(box, "rotation", np.eye(3)), dtype=float)
+    corners = np.asarray(box.centre, dtype=float) + (signs * half) @ rotation.T
     edges = []
     for a, b in itertools.combinations(range(8), 2):
-        if np.count_nonzero(corners[a] != corners[b]) == 1:
+        if np.count_nonzero(signs[a] != signs[b]) == 1:  # corners differing in one axis
             edges.append(corners[[a, b]])
     return edges
 
@@ -104,7 +107,8 @@ def draw_plan(poses, critical_indices, *, obstacles=(), safety_shells=(), triad_
     ``poses`` are unit dual quaternions (n, 8) of X_WE; ``critical_indices`` the samples
     of con_1 .. con_n, marked and labelled. Colours (:data:`PLAN_COLOURS`): the path
     goldenrod, critical configurations black, triads x red, y green, z blue, obstacles
-    red, safety shells purple. The legend names each one drawn.
+    red, safety shells purple (each box turned by its ``rotation``). The legend names
+    each one drawn.
     """
     from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
 
@@ -124,7 +128,7 @@ def draw_plan(poses, critical_indices, *, obstacles=(), safety_shells=(), triad_
         axes.text(*p[index], f" con_{number}", fontsize=8)
     for boxes, name in ((obstacles, "obstacle"), (safety_shells, "safety shell")):
         for box in boxes:
-            for edge in _box_edges(box.centre, box.size):
+            for edge in _box_edges(box):
                 axes.plot(*edge.T, color=colours[name], lw=0.8, alpha=0.7)
     # One legend entry per kind of thing drawn (proxy artists: a box is 12 edges).
     entries = [("plan", Line2D([], [], color=colours["plan"], lw=2))]

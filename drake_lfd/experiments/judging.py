@@ -22,10 +22,12 @@ from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
 from drake_lfd.diagrams.closed_loop import ClosedLoopResult
 from drake_lfd.robot.kinematics import UR5E_JOINT_NAMES, UR5eKinematics
 
-__all__ = ["RunJudgement", "judge_run", "SUCCESS_POSITION_TOLERANCE_M", "SUCCESS_ROTATION_TOLERANCE_RAD"]
+__all__ = ["RunJudgement", "judge_run", "SUCCESS_POSITION_TOLERANCE_M", "SUCCESS_ROTATION_TOLERANCE_RAD",
+           "SUCCESS_SINGULARITY_MARGIN"]
 
 SUCCESS_POSITION_TOLERANCE_M = 0.005
 SUCCESS_ROTATION_TOLERANCE_RAD = math.radians(2.0)
+SUCCESS_SINGULARITY_MARGIN = 0.05
 
 
 @dataclass(frozen=True)
@@ -44,6 +46,7 @@ def judge_run(
     path_constraints: Sequence = (),
     position_tolerance_m: float = SUCCESS_POSITION_TOLERANCE_M,
     rotation_tolerance_rad: float = SUCCESS_ROTATION_TOLERANCE_RAD,
+    singularity_margin: float = SUCCESS_SINGULARITY_MARGIN,
 ) -> RunJudgement:
     """Checks a run against the success criteria.
 
@@ -53,7 +56,11 @@ def judge_run(
       ``tolerance_rad`` of ``euler_zyx`` from con_from to con_to) holds on the log;
     - no robot geometry penetrates an obstacle or a safety shell (min distance > 0);
     - joint positions inside ``joint_limits`` and speeds inside ``velocity_limits``
-      (the UR5e's, by default) at every logged sample.
+      (the UR5e's, by default) at every logged sample;
+    - the elbow and the wrist keep ``singularity_margin`` (0.05) from their
+      singularities at every logged sample: ``|sin q3|`` (elbow straight) and
+      ``|sin q5|`` (wrist aligned) stay at or above it; a run through a singularity is
+      not a success even when it ends at the right pose.
 
     Returns
     -------
@@ -129,6 +136,13 @@ def judge_run(
                 f"{name}: speed {speeds[k]:.2f} rad/s > limit {velocity_limits[j]:.2f} rad/s "
                 f"(t = {result.t[k]:.2f} s)"
             )
+    if len(result.q):
+        for j, what in ((2, "elbow straight (|sin q3|"), (4, "wrist aligned (|sin q5|")):
+            margin = np.abs(np.sin(result.q[:, j]))
+            k = int(np.argmin(margin))
+            if margin[k] < singularity_margin:
+                failures.append(f"singularity: {what} = {margin[k]:.3f} < {singularity_margin:g} "
+                                f"at t = {result.t[k]:.2f} s)")
     return RunJudgement(success=not failures, failures=failures)
 
 

@@ -15,12 +15,16 @@ Steps (each printed as it runs):
    independent kinematics (``rederive.py``).
 
 Writes ``results.json`` (docs/cli.rst), ``report.md``, PNG figures and a Meshcat HTML
-recording per task into the output folder. Not for: the command line (``cli_paper.py``).
+recording per task into the output folder; every closed-loop trial is appended to
+``trials.jsonl`` there as it finishes (:mod:`drake_lfd.io.json_lines`), so an interrupt
+keeps what ran. When ``DRAKE_ALLOW_NETWORK`` disables Meshcat, the recordings are skipped
+with a note (:mod:`drake_lfd.core.network_policy`). Not for: the command line (``cli_paper.py``).
 """
 
 from __future__ import annotations
 
 import json
+import os
 import platform
 import time
 from pathlib import Path
@@ -30,7 +34,10 @@ import numpy as np
 
 from drake_lfd import __version__
 from drake_lfd.core.resources import scenarios_directory
-from drake_lfd.io.atomic_files import atomic_write_bytes, atomic_write_json
+from drake_lfd.core.network_policy import NETWORK_VARIABLE, drake_allows
+from drake_lfd.io.atomic_files import atomic_write_bytes
+from drake_lfd.io.json_lines import JsonLinesFile
+from drake_lfd.io.strict_json import write_json
 from drake_lfd.experiments.figures import training_curve_figure
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.plan_json import uncovered_json
@@ -38,7 +45,13 @@ from drake_lfd.planning.planner import build_problem, plan_task
 from drake_lfd.io.policy_files import save_policy
 from drake_lfd.planning.q_learning import episodes_to_steady
 from drake_lfd.experiments.rederive import rederive_run
-from drake_lfd.experiments.simulation import composition_counts, run_trials, shorten_reason, write_trial_figures
+from drake_lfd.experiments.simulation import (
+    composition_counts,
+    run_trials,
+    shorten_reason,
+    trial_record,
+    write_trial_figures,
+)
 from drake_lfd.experiments.table5 import compare as compare_table5
 from drake_lfd.core.tasks import draw_trial
 from drake_lfd.io.task_files import load_task
@@ -73,13 +86,19 @@ def _reasons(outcome) -> str:
     return "; ".join(shorten_reason(reason) for reason in outcome.failures)
 
 
-def _task_results(name, task, features, policy, trials, seed, out, log):
-    """Runs the trials of one task; figures and a recording of the first trial."""
+def _task_results(name, task, features, policy, trials, seed, out, log, finished=None, record=True):
+    """Runs the trials of one task; figures and (``record``) a recording of the first
+    trial; each finished trial is appended to ``finished`` (a JsonLinesFile)."""
     recording = out / f"{name}.html"
+
+    def progress(done, total, outcome):
+        if finished is not None:
+            finished.append(trial_record(task, outcome))
+        log(f"  {name} trial {done}/{total}: {'success' if outcome.success else 'FAILED ' + _reasons(outcome)}")
+
     outcomes, wall = run_trials(
-        task, features, trials=trials, seed=seed, planner="q", policy=policy, record_html=recording,
-        progress=lambda done, total, o: log(f"  {name} trial {done}/{total}: "
-                                            f"{'success' if o.success else 'FAILED ' + _reasons(o)}"),
+        task, features, trials=trials, seed=seed, planner="q", policy=policy,
+        record_html=recording if record else None, progress=progress,
     )
     first = next((o for o in outcomes if o.run is not None), None)
     figures = write_trial_figures(task, first, out, name) if first is not None else {}
@@ -93,7 +112,7 @@ def _task_results(name, task, features, policy, trials, seed, out, log):
             critical_configurations=[{"p": con.p, "euler_zyx": outcome.plan.euler_zyx[i]}
                                      for i, con in enumerate(outcome.plan.task.critical_configurations)],
             X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, path_constraints=outcome.plan.task.path_constraints,
-            obstacles=task.obstacles, safety_shells=task.safety_shells,
+            obstacles=task.obstacles, safety_shells=task.safety_shells, tool=task.tool,
         )
         rederived += check.success
         if not check.success:
@@ -107,15 +126,25 @@ def _task_results(name, task, features, policy, trials, seed, out, log):
         "failures": failures,
         "wall_time_s": wall,
         "sim_time_s": float(sum(o.run.sim_time_s for o in outcomes if o.run is not None)),
-        "recording": recording.name if recording.exists() else None,
+        "recording": recording.name if record and recording.exists() else None,
         "figures": figures,
     }
 
 
 def run_paper(out: Path, *, trials: int = 20, seed: int = 0, log: Callable[[str], None] = print) -> dict:
-    """Runs Section 6 and writes everything into ``out``; returns the results document."""
-    start = time.perf_counter()
+    """Runs Section 6 and writes everything into ``out``; returns the results document.
+    Every closed-loop trial is appended to ``out / "trials.jsonl"`` as it finishes."""
     out.mkdir(parents=True, exist_ok=True)
+    with JsonLinesFile(out / "trials.jsonl") as finished:
+        return _run_paper(out, trials=trials, seed=seed, log=log, finished=finished)
+
+
+def _run_paper(out: Path, *, trials: int, seed: int, log: Callable[[str], None], finished) -> dict:
+    start = time.perf_counter()
+    no_meshcat = not drake_allows("meshcat")
+    if no_meshcat:
+        log(f"note: {NETWORK_VARIABLE}={os.environ.get(NETWORK_VARIABLE)} disables Drake's Meshcat, so the "
+            f"Meshcat recordings are skipped (add meshcat to {NETWORK_VARIABLE} to make them)")
     sims = scenarios_directory()
     tasks = {name: load_task(sims / f"{name}.yaml") for name in ("transferring", "filling_pouring", "assembling")}
 
@@ -137,7 +166,8 @@ def run_paper(out: Path, *, trials: int = 20, seed: int = 0, log: Callable[[str]
                "tasks": {}}
     for name in ("transferring", "filling_pouring"):
         log(f"{name}: {trials} closed-loop trials with the trained policy")
-        results["tasks"][name] = _task_results(name, tasks[name], features5, training.policy, trials, seed, out, log)
+        results["tasks"][name] = _task_results(name, tasks[name], features5, training.policy, trials, seed, out, log,
+                                               finished, record=not no_meshcat)
 
     log("assembling with paper5")
     assembling = tasks["assembling"]
@@ -163,7 +193,8 @@ def run_paper(out: Path, *, trials: int = 20, seed: int = 0, log: Callable[[str]
                                         "wall_time_s": retraining.wall_time_s}
     log(f"assembling: {trials} closed-loop trials with the retrained policy")
     assembling_results["after_new_demo"] = _task_results(
-        "assembling", assembling, features6, retraining.policy, trials, seed, out, log)
+        "assembling", assembling, features6, retraining.policy, trials, seed, out, log, finished,
+        record=not no_meshcat)
     results["tasks"]["assembling"] = assembling_results
     results["table5"] = [
         {"demo": row.demo, "sample": row.sample, "alpha": float(row.alpha)} for row in table5
@@ -171,7 +202,7 @@ def run_paper(out: Path, *, trials: int = 20, seed: int = 0, log: Callable[[str]
     results["wall_time_s"] = time.perf_counter() - start
     results["environment"] = {"drake_lfd": __version__, "drake": _drake_version(),
                               "python": platform.python_version(), "machine": platform.machine()}
-    atomic_write_json(out / "results.json", results)
+    write_json(out / "results.json", results)
     atomic_write_bytes(out / "report.md", report_markdown(results, table5, tasks).encode("utf-8"))
     return results
 

@@ -86,6 +86,7 @@ def rederive_run(
     path_constraints=(),
     obstacles=(),
     safety_shells=(),
+    tool=None,
     position_tolerance_m: float = 0.005,
     rotation_tolerance_rad: float = np.radians(2.0),
     clearance_stride: int = 5,
@@ -93,7 +94,9 @@ def rederive_run(
     """The verdict of one run recomputed from its log.
 
     ``critical_configurations`` are ``{"p", "euler_zyx"}`` records (as in the JSON) and
-    ``critical_times_s`` when each was due; path constraints are ``tasks.PathConstraint``.
+    ``critical_times_s`` when each was due; path constraints are ``tasks.PathConstraint``;
+    ``tool`` the task's tool shapes (None: the default of ``X_tool0_E``), checked against
+    the boxes like the links.
     """
     t, q = np.asarray(t, dtype=float), np.asarray(q, dtype=float)
     X_E = X_WB.GetAsMatrix4() @ dh_forward_kinematics(q) @ X_tool0_E.GetAsMatrix4()
@@ -125,7 +128,8 @@ def rederive_run(
     if obstacles or safety_shells:
         from drake_lfd.robot.scene import KinematicScene
 
-        scene = KinematicScene(X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles, safety_shells=safety_shells)
+        scene = KinematicScene(X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles, safety_shells=safety_shells,
+                               tool=tool)
         for configuration in q[::clearance_stride]:
             min_clearance = min(min_clearance, float(scene.signed_distances(configuration).min()))
         if min_clearance <= 0.0:

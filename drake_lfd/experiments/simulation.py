@@ -31,6 +31,7 @@ from drake_lfd.core.features import Feature
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.io.plan_json import composition_json, critical_configurations_json, describe_uncovered
 from drake_lfd.planning.planner import PlanResult
+from drake_lfd.planning.problem_size import check_problem_size
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
 from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.core.tasks import Task, draw_trial
@@ -40,6 +41,8 @@ __all__ = [
     'TrialRunner',
     'run_trial',
     'run_trials',
+    'trial_json',
+    'trial_record',
     'simulate_json',
     'composition_counts',
     'clearance_over_time',
@@ -79,6 +82,7 @@ class TrialRunner:
 
     def __init__(self, task: Task, features: Mapping[str, Feature], *, planner: str = "exact",
                  policy: QPolicy | None = None, with_table: bool = True, config: PipelineConfig | None = None):
+        check_problem_size(task, features)  # a problem too large is refused before the pipeline is built
         self.task = task
         self._options = dict(features=features, planner=planner, policy=policy, with_table=with_table,
                              config=config if config is not None else task.simulation)
@@ -101,6 +105,9 @@ class TrialRunner:
         runner = self._runner if record_html is None else self._recorder()
         scheduled = runner.plan(concrete)
         plan = scheduled.result
+        if plan.status == "no_executable_plan":
+            return TrialOutcome(trial, seed, plan, None, False,
+                                ["no executable plan: " + segment.describe() for segment in plan.infeasible])
         if not plan.planned:
             return TrialOutcome(trial, seed, plan, None, False,
                                 ["demonstration requested: " + line for line in describe_uncovered(plan)])
@@ -157,29 +164,38 @@ def run_trials(
     return outcomes, time.perf_counter() - start
 
 
+def trial_json(outcome: TrialOutcome) -> dict:
+    """One entry of ``trials`` in the ``simulate --json`` document (docs/cli.rst); also
+    each line of the JSON-lines file of finished trials (with ``task`` added)."""
+    entry = {
+        "trial": outcome.trial,
+        "seed": outcome.seed,
+        "success": outcome.success,
+        "failures": outcome.failures,
+        "status": outcome.plan.status if outcome.plan else None,
+        "critical_configurations": critical_configurations_json(outcome.plan) if outcome.plan else [],
+        "composition": composition_json(outcome.plan) if outcome.plan else [],
+    }
+    if outcome.run is not None:
+        entry.update(outcome.run.trial_fields())
+        entry["min_distance_pair"] = outcome.run.min_distance_pair
+        entry["critical_times_s"] = [float(e.time_s) for e in outcome.run.critical_errors]
+    else:
+        entry.update({"critical_errors": [], "min_shell_distance_m": None,
+                      "max_joint_speed_fraction": None, "t": [], "q": []})
+    return entry
+
+
+def trial_record(task: Task, outcome: TrialOutcome) -> dict:
+    """The JSON-lines record of one finished trial: ``{"task": NAME, **trial_json}``."""
+    return {"task": task.name, **trial_json(outcome)}
+
+
 def simulate_json(task: Task, outcomes: list[TrialOutcome], wall_time_s: float) -> dict:
     """The ``simulate --json`` document (docs/cli.rst). Extra per-trial fields:
     ``status`` (the plan's), ``min_distance_pair`` and ``critical_times_s`` (when each
     critical configuration was due, so the verdict can be re-derived from ``t``/``q``)."""
-    trials = []
-    for outcome in outcomes:
-        entry = {
-            "trial": outcome.trial,
-            "seed": outcome.seed,
-            "success": outcome.success,
-            "failures": outcome.failures,
-            "status": outcome.plan.status if outcome.plan else None,
-            "critical_configurations": critical_configurations_json(outcome.plan) if outcome.plan else [],
-            "composition": composition_json(outcome.plan) if outcome.plan else [],
-        }
-        if outcome.run is not None:
-            entry.update(outcome.run.trial_fields())
-            entry["min_distance_pair"] = outcome.run.min_distance_pair
-            entry["critical_times_s"] = [float(e.time_s) for e in outcome.run.critical_errors]
-        else:
-            entry.update({"critical_errors": [], "min_shell_distance_m": None,
-                          "max_joint_speed_fraction": None, "t": [], "q": []})
-        trials.append(entry)
+    trials = [trial_json(outcome) for outcome in outcomes]
     sim_time = float(sum(o.run.sim_time_s for o in outcomes if o.run is not None))
     return {
         "task": task.name,
@@ -204,12 +220,12 @@ def composition_counts(outcomes: list[TrialOutcome]) -> dict[str, int]:
 
 
 def clearance_over_time(task: Task, run: ClosedLoopResult, stride: int = 10) -> tuple[np.ndarray, np.ndarray]:
-    """Least signed distance of the robot to the task's obstacles and shells along a run,
+    """Least signed distance of the robot and its tool to the task's obstacles and shells along a run,
     re-queried from the logged joints every ``stride`` samples: times (k,), metres (k,)."""
     from drake_lfd.robot.scene import KinematicScene
+    from drake_lfd.robot.workcell import Workcell
 
-    scene = KinematicScene(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, obstacles=task.obstacles,
-                           safety_shells=task.safety_shells)
+    scene = KinematicScene(Workcell.of(task))
     t = run.t[::stride]
     return t, np.array([scene.signed_distances(q).min() for q in run.q[::stride]])
 

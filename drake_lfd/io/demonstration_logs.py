@@ -20,12 +20,24 @@ Choices for real logs:
   recording do not become part of the motion. A freedrive demonstration taught with no
   program running has no PLAYING row at all; then every row is kept and a warning says
   so, rather than refusing the log.
-- A log cut off mid-line by a crash or a full disk is common. If the *last* line has
-  fewer fields than the header, or its last token does not parse and the file does not
-  end with a newline, that line is dropped and a warning returned. The same damage
-  anywhere else is an error: the file is not a log.
+- A log cut off mid-line by a crash or a full disk is common. A file whose last line
+  has no newline after it may have been cut anywhere in that line, even inside a
+  number (``-3.6277474137027124`` cut to ``-3`` still parses), so that line is dropped
+  with a warning, whatever it parses to; so is a last line with fewer fields than the
+  header. The same damage anywhere else is an error: the file is not a log.
+- Numbers are spelled as C and every CSV reader reads them: ASCII digits, an optional
+  sign, decimal point and exponent (``nan``/``inf`` are read and then refused as not
+  finite). Spellings only Python's ``float`` accepts (``0_5``, Arabic-Indic or other
+  non-ASCII digits, surrounding Unicode spaces) are refused.
 - Joint angles beyond ``2 pi + 0.05`` rad (the UR joint range plus a margin for
   measurement overshoot) are refused: the log is probably in degrees.
+- Timestamps are seconds (:func:`check_plausible_motion`): samples a median of more
+  than :data:`MAX_SAMPLE_INTERVAL_S` apart, or a log spanning more than
+  :data:`MAX_DURATION_S`, are refused (milliseconds or nanoseconds, or a recording left
+  running), naming the line.
+- A joint moving faster than :data:`MAX_JOINT_SPEED_RAD_S` (twice the UR5e's 180 deg/s)
+  between two samples is refused, naming the line: the log jumps (a lost stretch of
+  samples, a teleport, spliced recordings).
 
 Every problem is one :class:`~drake_lfd.core.errors.InputError` naming the file, the line
 and column, and what is wrong.
@@ -49,11 +61,18 @@ from drake_lfd.core.errors import InputError
 from drake_lfd.io.atomic_files import atomic_write_bytes
 
 __all__ = [
+    "UR5E_JOINT_SPEED_LIMIT_RAD_S",
+    "MAX_JOINT_SPEED_RAD_S",
+    "MAX_SAMPLE_INTERVAL_S",
+    "MAX_DURATION_S",
     "TIMESTAMP_COLUMN",
     "RUNTIME_STATE_COLUMN",
     "RUNTIME_STATE_PLAYING",
     "LoadedDemonstration",
+    "parse_number",
+    "check_plausible_motion",
     "read_rtde_csv",
+    "log_sample_summary",
     "rtde_csv_text",
     "write_rtde_csv",
 ]
@@ -64,6 +83,21 @@ RUNTIME_STATE_COLUMN = "runtime_state"
 RUNTIME_STATE_PLAYING = 2
 
 _JOINT_COLUMN_PATTERN = re.compile(r"^actual_q_(\d+)$")
+
+#: The UR5e's joint speed limit (180 deg/s, every joint; as in models/ur5e/ur5e.urdf).
+UR5E_JOINT_SPEED_LIMIT_RAD_S = math.pi
+#: A joint faster than this between two samples is a jump in the log, not a motion.
+MAX_JOINT_SPEED_RAD_S = 2.0 * UR5E_JOINT_SPEED_LIMIT_RAD_S
+#: RTDE streams at 10-500 Hz; a median sample interval above this is not seconds.
+MAX_SAMPLE_INTERVAL_S = 1.0
+#: A kinesthetic demonstration longer than this (10 minutes) is not one.
+MAX_DURATION_S = 600.0
+
+# A number as C's strtod, numpy and every CSV reader spell it: ASCII only.
+_NUMBER_PATTERN = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z", re.ASCII)
+_NON_FINITE_SPELLINGS = frozenset(
+    sign + word for sign in ("", "+", "-") for word in ("nan", "inf", "infinity")
+)
 
 
 class LoadedDemonstration(NamedTuple):
@@ -80,10 +114,28 @@ class LoadedDemonstration(NamedTuple):
 # ----------------------------------------------------------------------------- reading
 
 
+# Separators and the blanks around fields are ASCII (str.split() would also split on
+# no-break and other Unicode spaces, which no CSV writer puts between fields).
+_ASCII_BLANKS = " \t\r\n\f\v"
+_ASCII_BLANK_RUN = re.compile(r"[ \t\f\v]+")
+
+
 def _split(line, delimiter):
     if delimiter is None:
-        return line.split()
-    return [field.strip() for field in line.split(delimiter)]
+        return _ASCII_BLANK_RUN.split(line.strip(_ASCII_BLANKS))
+    return [field.strip(_ASCII_BLANKS) for field in line.split(delimiter)]
+
+
+def _cell(token, path, number, column):
+    value = parse_number(token)
+    if value is None:
+        raise InputError(
+            f"{token!r} is not a number (write ASCII digits with an optional sign, '.' and "
+            "exponent, as in -0.5 or 1e-3)",
+            file=path,
+            field=f"line {number}, column {column}",
+        )
+    return value
 
 
 def _header_columns(header_line, path):
@@ -118,6 +170,77 @@ def _header_columns(header_line, path):
     return columns, delimiter
 
 
+def parse_number(token):
+    """The float a CSV cell spells, or None if it is not a number in the ASCII spelling
+    every CSV reader shares (``1``, ``-0.5``, ``.5``, ``1e-3``; ``nan`` and ``inf`` are
+    numbers here, refused later as not finite). Python-only spellings that ``float``
+    accepts, such as ``0_5`` or non-ASCII digits, give None."""
+    if _NUMBER_PATTERN.match(token) or token.lower() in _NON_FINITE_SPELLINGS:
+        return float(token)
+    return None
+
+
+def check_plausible_motion(timestamps, joint_positions, *, file, field_of):
+    """Refuses timestamps that are not seconds and joints that jump.
+
+    Parameters
+    ----------
+    timestamps : array, shape (m,)
+        Strictly increasing (checked before).
+    joint_positions : array, shape (m, 6)
+    file : str or Path
+        Named in the error.
+    field_of : callable
+        Sample index -> where that sample is (``"line 12"``, ``"sample 11"``).
+
+    Raises
+    ------
+    InputError
+        The median sample interval exceeds :data:`MAX_SAMPLE_INTERVAL_S` (naming the
+        first interval that does), the samples span more than :data:`MAX_DURATION_S`
+        (naming the first sample beyond it), or a joint moves faster than
+        :data:`MAX_JOINT_SPEED_RAD_S` between two samples (naming the sample and joint).
+    """
+    t = np.asarray(timestamps, dtype=float)
+    q = np.asarray(joint_positions, dtype=float)
+    if t.shape[0] < 2:
+        return
+    steps = np.diff(t)
+    median = float(np.median(steps))
+    units = "are the timestamps in milliseconds or nanoseconds? They must be seconds"
+    if median > MAX_SAMPLE_INTERVAL_S:
+        k = int(np.argmax(steps > MAX_SAMPLE_INTERVAL_S)) + 1
+        raise InputError(
+            f"timestamp {float(t[k])!r} is {steps[k - 1]:.6g} s after the previous sample's "
+            f"({field_of(k - 1)}), and samples are a median {median:.6g} s apart, where a UR "
+            f"RTDE log samples every 0.002-0.1 s; {units}",
+            file=file,
+            field=f"{field_of(k)}, column {TIMESTAMP_COLUMN}",
+        )
+    elapsed = t - t[0]
+    if elapsed[-1] > MAX_DURATION_S:
+        k = int(np.argmax(elapsed > MAX_DURATION_S))
+        raise InputError(
+            f"timestamp {float(t[k])!r} is {elapsed[k]:.6g} s after the first sample's, and the log "
+            f"spans {elapsed[-1]:.6g} s, more than a demonstration's {MAX_DURATION_S:g} s; "
+            f"{units} (or trim the recording to the demonstration)",
+            file=file,
+            field=f"{field_of(k)}, column {TIMESTAMP_COLUMN}",
+        )
+    speeds = np.abs(np.diff(q, axis=0)) / steps[:, None]
+    too_fast = speeds > MAX_JOINT_SPEED_RAD_S
+    if np.any(too_fast):
+        k, joint = (int(v) for v in np.argwhere(too_fast)[0])
+        raise InputError(
+            f"joint {JOINT_COLUMNS[joint]} moves {q[k + 1, joint] - q[k, joint]:+.6g} rad in "
+            f"{steps[k]:.6g} s after the previous sample ({field_of(k)}): {speeds[k, joint]:.6g} "
+            f"rad/s, more than twice the UR5e's 180 deg/s joint speed limit; the log jumps "
+            "(lost samples, a teleport, spliced recordings)",
+            file=file,
+            field=f"{field_of(k + 1)}, column {JOINT_COLUMNS[joint]}",
+        )
+
+
 def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True):
     """Reads a UR RTDE joint log (or the project's own format) as a demonstration.
 
@@ -143,8 +266,10 @@ def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True)
     ------
     InputError
         Naming the file, line and column: empty file, missing columns, wrong number of
-        joints, a short line before the last, a non-numeric or non-finite cell,
-        fewer than 2 samples, timestamps not strictly increasing, angles in degrees.
+        joints, a short line before the last, a non-numeric (or Python-only spelled) or
+        non-finite cell, fewer than 2 samples, timestamps not strictly increasing,
+        angles in degrees, timestamps not in seconds or a joint jump
+        (:func:`check_plausible_motion`).
     """
     path = Path(path)
     try:
@@ -161,7 +286,8 @@ def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True)
         raise InputError(
             f"not a text CSV (byte {error.start} is not UTF-8)", file=path
         ) from None
-    ends_with_newline = text.endswith(("\n", "\r"))
+    # Whether the last non-blank line has a newline after it (a complete write).
+    ends_with_newline = text.rstrip(" \t").endswith(("\n", "\r"))
     # (line number, text) of every non-blank line; line numbers count from 1.
     lines = [(number, line) for number, line in enumerate(text.splitlines(), start=1) if line.strip()]
     if not lines:
@@ -178,6 +304,13 @@ def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True)
     for position, (number, line) in enumerate(data_lines):
         is_last = position == len(data_lines) - 1
         fields = _split(line, delimiter)
+        if is_last and not ends_with_newline:
+            # Cut anywhere in this line, perhaps inside a number that still parses.
+            warnings.append(
+                f"{path}: line {number}: the log ends mid-line (no newline after its last line, "
+                f"which ends {fields[-1]!r} and may be cut short); dropped that line"
+            )
+            break
         if len(fields) < len(columns) and is_last:
             warnings.append(
                 f"{path}: line {number}: the log ends mid-line ({len(fields)} of "
@@ -191,37 +324,12 @@ def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True)
                 field=f"line {number}",
             )
         values = []
-        cut_off = False
         for column_index, column in zip(wanted_index, wanted):
-            token = fields[column_index]
-            try:
-                values.append(float(token))
-            except ValueError:
-                if is_last and not ends_with_newline and column_index == len(columns) - 1:
-                    cut_off = True
-                    break
-                raise InputError(
-                    f"{token!r} is not a number", file=path, field=f"line {number}, column {column}"
-                ) from None
+            value = _cell(fields[column_index], path, number, column)
+            values.append(value)
         runtime_state = None
-        if not cut_off and runtime_index is not None:
-            token = fields[runtime_index]
-            try:
-                runtime_state = float(token)
-            except ValueError:
-                if not (is_last and not ends_with_newline and runtime_index == len(columns) - 1):
-                    raise InputError(
-                        f"{token!r} is not a number",
-                        file=path,
-                        field=f"line {number}, column {RUNTIME_STATE_COLUMN}",
-                    ) from None
-                cut_off = True
-        if cut_off:
-            warnings.append(
-                f"{path}: line {number}: the log ends mid-value ({fields[-1]!r} without a "
-                "newline); dropped that line"
-            )
-            break
+        if runtime_index is not None:
+            runtime_state = _cell(fields[runtime_index], path, number, RUNTIME_STATE_COLUMN)
         for column, value in zip(wanted, values):
             if not math.isfinite(value):
                 raise InputError(
@@ -260,6 +368,9 @@ def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True)
             check_joint_value(value, file=path, field=f"line {number}, column {column}")
 
     table = np.array([values for _, values, _ in rows])
+    check_plausible_motion(
+        table[:, 0], table[:, 1:], file=path, field_of=lambda index: f"line {rows[index][0]}"
+    )
     demonstration = Demonstration(
         name=path.stem if name is None else name,
         timestamps=table[:, 0],
@@ -267,6 +378,42 @@ def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True)
         description=description,
     )
     return LoadedDemonstration(demonstration, tuple(warnings))
+
+
+def log_sample_summary(log_bytes, path):
+    """``(samples, duration_s)`` of a log in the project's own format, cheaply: the
+    number of non-blank lines after the header, and the last timestamp minus the first.
+
+    What a library checks its manifest against when it is opened, without reading
+    every number (:func:`read_rtde_csv` checks those when the log is used).
+
+    Raises
+    ------
+    InputError
+        Naming ``path``: not UTF-8, no header with a ``timestamp`` column, or a first
+        or last timestamp that is not a number.
+    """
+    try:
+        text = log_bytes.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        raise InputError(f"not a text CSV (byte {error.start} is not UTF-8)", file=path) from None
+    lines = [(number, line) for number, line in enumerate(text.splitlines(), start=1) if line.strip()]
+    if not lines:
+        raise InputError("the file is empty; expected an RTDE CSV log with a header row", file=path)
+    columns, delimiter = _header_columns(lines[0][1], path)
+    index = columns.index(TIMESTAMP_COLUMN)
+    data = lines[1:]
+    if len(data) < 2:
+        return len(data), 0.0
+    times = []
+    for number, line in (data[0], data[-1]):
+        fields = _split(line, delimiter)
+        if index >= len(fields):
+            raise InputError(
+                f"has {len(fields)} fields but the header has {len(columns)}", file=path, field=f"line {number}"
+            )
+        times.append(_cell(fields[index], path, number, TIMESTAMP_COLUMN))
+    return len(data), float(times[1] - times[0])
 
 
 # ----------------------------------------------------------------------------- writing

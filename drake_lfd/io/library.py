@@ -6,6 +6,7 @@ A library is a folder a user can read and back up with ordinary tools::
       library.json          the manifest (io/library_manifest.py): what the library holds
       demos/<name>.csv      one joint log per demonstration, the project's RTDE-style CSV
       cache/<name>.npz      resampled poses and feature per demonstration (derived data)
+      library.lock          empty; writers hold an exclusive flock on it (file_lock.py)
 
 :class:`Library` opens, creates, reads and edits one; docs/libraries.rst documents the
 directory for users.
@@ -24,9 +25,25 @@ Durability: every file is written atomically (``atomic_files.atomic_write_bytes`
 temporary file in the same directory, flushed and fsynced, ``os.replace``, then the
 directory fsynced). ``add`` writes the log before the manifest that references it,
 ``remove`` rewrites the manifest before deleting the log. A crash therefore leaves at
-worst an unreferenced log (ignored, overwritten by a later ``add`` of that name), never a
-manifest pointing at a missing or partial log. Concurrent writers are not coordinated:
-do not run two ``add``/``remove`` at once on one library.
+worst an unreferenced log (ignored, overwritten by a later ``add`` of that name) or a
+temporary file, never a manifest pointing at a missing or partial log.
+
+Concurrency: every write (``create``, ``add``, ``remove``, ``write_feature_caches``)
+holds the exclusive lock on ``library.lock`` across its whole read-modify-write: it
+re-reads the manifest from disk under the lock (so two ``add`` of different
+demonstrations both land, and a name taken meanwhile is refused), writes the log, the
+manifest and the cache, and first deletes the temporary files a killed writer left
+(``.*.tmp``; under the lock no other writer can be mid-write). Opening a library holds
+the shared lock while it reads the manifest and checks it against the logs, so a reader
+never sees a manifest without its logs. The kernel frees a dead holder's lock.
+
+Consistency: opening a library checks each entry against its log (the log exists, and
+its sample count and duration are the manifest's ``samples`` and ``duration_s``), one
+error naming the manifest and the field. ``open(..., check_logs=False)`` skips this so
+``remove`` can drop an entry whose log was deleted or damaged. Every check of a new
+demonstration runs before anything is written, so a refused ``add`` (or
+:meth:`Library.create_with`, a new library with its first demonstration) changes
+nothing and creates nothing.
 
 Names: ``Library.open`` takes a path to an existing directory, else the name of a
 library bundled with drake-lfd (``drake_lfd/sims/libraries/<name>/`` when installed,
@@ -42,7 +59,9 @@ comparing features (``similarity.py``), the command line (``cli/library.py``).
 
 from __future__ import annotations
 
+import contextlib
 import datetime
+import math
 import os
 import shutil
 import uuid
@@ -62,11 +81,18 @@ from drake_lfd.core.features import (
 )
 from drake_lfd.core.resources import bundled_library_directories
 from drake_lfd.io.atomic_files import atomic_write_bytes, fsync_directory
-from drake_lfd.io.demonstration_logs import read_rtde_csv, rtde_csv_text
+from drake_lfd.io.demonstration_logs import (
+    check_plausible_motion,
+    log_sample_summary,
+    read_rtde_csv,
+    rtde_csv_text,
+)
 from drake_lfd.io.feature_cache import cache_key, read_feature_cache, write_feature_cache
+from drake_lfd.io.file_lock import LockUnavailable, exclusive_lock, shared_lock
 from drake_lfd.io.library_manifest import (
     CACHE_DIRECTORY,
     DEMOS_DIRECTORY,
+    LOCK_NAME,
     MANIFEST_NAME,
     NAME_PATTERN,
     DemoEntry,
@@ -81,9 +107,12 @@ from drake_lfd.robot.kinematics import UR5eKinematics, dual_quaternions_from_dem
 __all__ = [
     "END_EFFECTOR_FRAME_TOLERANCE",
     "MIN_MOTION_LENGTH",
+    "DURATION_TOLERANCE_S",
     "bundled_library_names",
     "bundled_library_paths",
     "tool_frame_options",
+    "is_unused_library_directory",
+    "remove_stale_temporaries",
     "Library",
     "copy_library",
     "library_features",
@@ -98,10 +127,155 @@ END_EFFECTOR_FRAME_TOLERANCE = 1e-9
 MIN_MOTION_LENGTH = 1e-6
 
 
+# A duration in the manifest within this of the log's (s) is the same duration.
+DURATION_TOLERANCE_S = 1e-6
+
+
 def _make_directory(path):
     if not path.is_dir():
         path.mkdir(parents=True, exist_ok=True)
         fsync_directory(path.parent)
+
+
+def _temporaries(directory):
+    """The temporary files an interrupted atomic write of a library file leaves."""
+    directory = Path(directory)
+    found = list(directory.glob(f".{MANIFEST_NAME}.*.tmp"))
+    for sub in (DEMOS_DIRECTORY, CACHE_DIRECTORY):
+        if (directory / sub).is_dir():
+            found += [p for p in (directory / sub).glob(".*.tmp") if p.is_file()]
+    return found
+
+
+def remove_stale_temporaries(directory):
+    """Deletes the temporary files (``.*.tmp``) that writers killed mid-write left in a
+    library directory; call with the library's lock held (then no write is under way).
+    Returns the paths deleted."""
+    removed = []
+    for path in _temporaries(directory):
+        try:
+            path.unlink()
+            removed.append(path)
+        except FileNotFoundError:
+            pass
+    return removed
+
+
+def is_unused_library_directory(path):
+    """True if ``path`` does not exist, or is a directory without a manifest that holds
+    nothing but what a library write killed before its manifest leaves (the lock file,
+    temporary files, empty ``demos/`` and ``cache/``): a place a new library may go."""
+    path = Path(path)
+    if not path.exists():
+        return True
+    if not path.is_dir() or (path / MANIFEST_NAME).exists():
+        return False
+    debris = {str(p) for p in _temporaries(path)}
+    for child in path.iterdir():
+        if child.name == LOCK_NAME and child.is_file():
+            continue
+        if str(child) in debris:
+            continue
+        if child.name in (DEMOS_DIRECTORY, CACHE_DIRECTORY) and child.is_dir():
+            if all(str(grandchild) in debris for grandchild in child.iterdir()):
+                continue
+        return False
+    return True
+
+
+@contextlib.contextmanager
+def _writing(directory, label):
+    """Holds the library's exclusive lock and clears stale temporaries first."""
+    with contextlib.ExitStack() as stack:
+        try:
+            stack.enter_context(exclusive_lock(Path(directory) / LOCK_NAME))
+        except LockUnavailable as error:
+            raise InputError(
+                f"cannot lock the library for writing ({error.strerror}: {error.filename})", file=label
+            ) from None
+        remove_stale_temporaries(directory)
+        yield
+
+
+def _check_logs(directory, manifest):
+    """Each entry against its log: present, same sample count and duration."""
+    manifest_path = Path(directory) / MANIFEST_NAME
+    for index, entry in enumerate(manifest.entries):
+        log = Path(directory) / entry.file
+        field = f"demos[{index}]"
+        remedy = (
+            f"restore the log, or drop the entry with 'drake-lfd library remove {directory} {entry.name}' "
+            "and add the demonstration again"
+        )
+        try:
+            log_bytes = log.read_bytes()
+        except FileNotFoundError:
+            raise InputError(
+                f"the joint log {entry.file} is missing; {remedy}", file=manifest_path, field=f"{field}.file"
+            ) from None
+        except OSError as error:
+            raise InputError(f"cannot read the joint log: {error.strerror}", file=log) from None
+        samples, duration_s = log_sample_summary(log_bytes, log)
+        if samples != entry.samples:
+            raise InputError(
+                f"is {entry.samples} but the joint log {entry.file} has {samples} samples "
+                f"(one of them was edited by hand); {remedy}",
+                file=manifest_path,
+                field=f"{field}.samples",
+            )
+        if not math.isclose(duration_s, entry.duration_s, rel_tol=0.0, abs_tol=DURATION_TOLERANCE_S):
+            raise InputError(
+                f"is {entry.duration_s!r} s but the joint log {entry.file} spans {duration_s!r} s "
+                f"(one of them was edited by hand); {remedy}",
+                file=manifest_path,
+                field=f"{field}.duration_s",
+            )
+
+
+class _PendingDemo(NamedTuple):
+    """A checked demonstration ready to be written: entry, log bytes, feature."""
+
+    entry: DemoEntry
+    log_bytes: bytes
+    feature: Feature
+
+
+def _prepare(demonstration, name, description, *, kinematics, num_samples, rotation_length_m, source, label):
+    """Every check of a new demonstration that does not depend on what the library
+    holds (name syntax, the demonstration itself, that it moves the tool)."""
+    check_demo_name(name)
+    if not isinstance(description, str):
+        raise InputError(f"expected a string, got {description!r}", field="description")
+    file = label if source is None else source
+    check_demonstration(demonstration, file=file)
+    check_plausible_motion(
+        demonstration.timestamps, demonstration.joint_positions, file=file, field_of=lambda i: f"sample {i}"
+    )
+    stored = Demonstration(
+        name=name,
+        timestamps=demonstration.timestamps,
+        joint_positions=demonstration.joint_positions,
+        description=description,
+    )
+    D = dual_quaternions_from_demonstration(stored, kinematics)
+    length = float(arc_lengths_from_poses(D, rotation_length_m)[-1])
+    if not length > MIN_MOTION_LENGTH:
+        raise InputError(
+            f"the demonstration does not move the tool (its path is {length:.3g} m long, counting "
+            f"{rotation_length_m:g} m per radian of rotation); it has no feature to learn",
+            file=file,
+            field="samples",
+        )
+    feature = Feature.from_poses(D, num_samples=num_samples, rotation_length_m=rotation_length_m)
+    entry = DemoEntry(
+        name=name,
+        file=f"{DEMOS_DIRECTORY}/{name}.csv",
+        samples=stored.num_samples,
+        duration_s=stored.duration_s,
+        description=description,
+        added=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+    )
+    return _PendingDemo(entry, rtde_csv_text(stored).encode("utf-8"), feature)
 
 
 def bundled_library_names():
@@ -186,25 +360,32 @@ class Library:
 
     # -- opening ---------------------------------------------------------------------
     @classmethod
-    def open(cls, path_or_name, **feature_parameters):
+    def open(cls, path_or_name, *, check_logs=True, **feature_parameters):
         """Opens a library directory, or a bundled library by name (read-only).
 
         Parameters
         ----------
         path_or_name : str or Path
             A path to an existing library directory; otherwise a bundled library name.
+        check_logs : bool
+            Check every entry against its joint log (it exists, its sample count and
+            duration are the manifest's). False only to repair a library
+            (``library remove`` of an entry whose log is gone).
         **feature_parameters
             ``num_samples``, ``rotation_length_m`` (defaults from ``features.py``).
 
         Raises
         ------
         InputError
-            Neither exists (the message lists what was tried), or the manifest is
-            corrupt (naming the field).
+            Neither exists (the message lists what was tried), the manifest is
+            corrupt, or it disagrees with a log (naming the manifest and the field).
         """
         candidate = Path(path_or_name)
         if candidate.is_dir():
-            return cls._load(candidate, label=str(candidate.resolve()), read_only=False, **feature_parameters)
+            return cls._load(
+                candidate, label=str(candidate.resolve()), read_only=False, check_logs=check_logs,
+                **feature_parameters,
+            )
         if candidate.exists():
             raise InputError("is a file, not a library directory", file=path_or_name)
         name = str(path_or_name)
@@ -212,7 +393,10 @@ class Library:
         if NAME_PATTERN.match(name):
             for directory in bundled_library_directories():
                 if (directory / name / MANIFEST_NAME).is_file():
-                    return cls._load(directory / name, label=name, read_only=True, **feature_parameters)
+                    return cls._load(
+                        directory / name, label=name, read_only=True, check_logs=check_logs,
+                        **feature_parameters,
+                    )
                 looked_in.append(str(directory))
         bundled = ", ".join(bundled_library_names()) or "none"
         tried = f"no directory {candidate.resolve()}"
@@ -221,10 +405,15 @@ class Library:
         raise InputError(f"no such library: {tried} (bundled libraries: {bundled})", file=name)
 
     @classmethod
-    def _load(cls, directory, *, label, read_only, **feature_parameters):
+    def _load(cls, directory, *, label, read_only, check_logs=True, **feature_parameters):
+        # The shared lock keeps writers out while the manifest and the logs are compared.
+        with shared_lock(Path(directory) / LOCK_NAME):
+            manifest = read_manifest(directory, check_logs=check_logs)
+            if check_logs:
+                _check_logs(directory, manifest)
         return cls(
             path=directory,
-            manifest=read_manifest(directory),
+            manifest=manifest,
             label=label,
             read_only=read_only,
             **feature_parameters,
@@ -243,21 +432,34 @@ class Library:
         Raises
         ------
         InputError
-            ``path`` is a file, a library already, or a non-empty directory.
+            ``path`` is a file, a library already (also when another process made it
+            one meanwhile), or a directory holding anything but what a killed
+            ``create`` leaves (:func:`is_unused_library_directory`).
         """
         directory = Path(path)
         if directory.exists():
             if not directory.is_dir():
                 raise InputError("exists and is not a directory", file=path)
-            if (directory / MANIFEST_NAME).exists():
-                raise InputError("is a library already", file=path)
-            if any(directory.iterdir()):
+            if not is_unused_library_directory(directory):
+                # (Checked after: another process may be making it a library right now.)
+                if (directory / MANIFEST_NAME).exists():
+                    raise InputError("is a library already", file=path)
                 raise InputError("exists and is not empty; choose a new directory for a library", file=path)
-        _make_directory(directory)
-        _make_directory(directory / DEMOS_DIRECTORY)
-        _make_directory(directory / CACHE_DIRECTORY)
+        created = not directory.exists()
         manifest = Manifest.new(RigidTransform() if X_tool0_E is None else X_tool0_E)
-        write_manifest(directory, manifest)
+        try:
+            _make_directory(directory)
+            with _writing(directory, directory):
+                if (directory / MANIFEST_NAME).exists():  # another process was quicker
+                    created = False
+                    raise InputError("is a library already", file=path)
+                _make_directory(directory / DEMOS_DIRECTORY)
+                _make_directory(directory / CACHE_DIRECTORY)
+                write_manifest(directory, manifest)
+        except BaseException:
+            if created and not (directory / MANIFEST_NAME).exists():
+                _remove_unused_directory(directory)
+            raise
         return cls(
             path=directory,
             manifest=manifest,
@@ -265,6 +467,55 @@ class Library:
             read_only=False,
             **feature_parameters,
         )
+
+    @classmethod
+    def create_with(cls, path, demonstration, name, description="", *, X_tool0_E, source=None,
+                    **feature_parameters):
+        """A new library at ``path`` holding ``demonstration``: ``library add`` to a new
+        directory. Every check of the demonstration runs before anything is written, so
+        a refusal creates nothing. If another process made ``path`` a library meanwhile
+        with the same frame, the demonstration is added to it.
+
+        Parameters
+        ----------
+        path, X_tool0_E
+            As for :meth:`create`.
+        demonstration, name, description, source
+            As for :meth:`add`.
+
+        Returns
+        -------
+        (library, entry) : (Library, DemoEntry)
+
+        Raises
+        ------
+        InputError
+            As :meth:`create` and :meth:`add`; or the library made meanwhile has another
+            end-effector frame.
+        """
+        parameters = {
+            "num_samples": feature_parameters.get("num_samples", DEFAULT_NUM_SAMPLES),
+            "rotation_length_m": feature_parameters.get("rotation_length_m", DEFAULT_ROTATION_LENGTH_M),
+        }
+        _prepare(
+            demonstration, name, description, kinematics=UR5eKinematics(X_tool0_E=X_tool0_E),
+            source=source, label=str(Path(path).absolute()), **parameters,
+        )
+        try:
+            library = cls.create(path, X_tool0_E, **feature_parameters)
+        except InputError:
+            if not (Path(path) / MANIFEST_NAME).is_file():
+                raise
+            library = cls.open(path, **feature_parameters)
+            difference = np.max(np.abs(library.X_tool0_E.GetAsMatrix4() - X_tool0_E.GetAsMatrix4()))
+            if difference > END_EFFECTOR_FRAME_TOLERANCE:
+                raise InputError(
+                    "became a library with another end-effector frame while this add ran "
+                    f"({tool_frame_options(library.X_tool0_E)})",
+                    file=library.label,
+                    field="X_tool0_E",
+                ) from None
+        return library, library.add(demonstration, name, description, source=source)
 
     # -- reading ---------------------------------------------------------------------
     @property
@@ -352,14 +603,20 @@ class Library:
         """
         if self.read_only:
             return ()
-        written = []
+        missing = []
         for name in self.names:
-            record = self._feature_record(name)
-            if record.on_disk and self.cache_path(name).is_file():
-                continue
-            if write_feature_cache(self.cache_path(name), record.key, record.feature):
-                self._features[name] = record._replace(on_disk=True)
-                written.append(name)
+            record = self._feature_record(name)  # computed outside the lock
+            if not (record.on_disk and self.cache_path(name).is_file()):
+                missing.append((name, record))
+        written = []
+        try:
+            with _writing(self.path, self.label):
+                for name, record in missing:
+                    if write_feature_cache(self.cache_path(name), record.key, record.feature):
+                        self._features[name] = record._replace(on_disk=True)
+                        written.append(name)
+        except InputError:  # the lock cannot be taken (read-only directory): no caches
+            return ()
         return tuple(written)
 
     def _feature_record(self, name):
@@ -405,8 +662,10 @@ class Library:
                 file=self.label,
             )
 
-    def add(self, demonstration, name, description=""):
-        """Adds a demonstration: its joint log, then the manifest entry, then the cache.
+    def add(self, demonstration, name, description="", *, source=None):
+        """Adds a demonstration: its joint log, then the manifest entry, then the cache,
+        all under the library's lock (re-reading the manifest there, so concurrent adds
+        of different names all land).
 
         Parameters
         ----------
@@ -414,6 +673,8 @@ class Library:
         name : str
             ``[A-Za-z0-9_-]+``, unique in the library (ignoring case).
         description : str
+        source : str or Path, optional
+            The log the demonstration was read from, named in errors about it.
 
         Returns
         -------
@@ -422,65 +683,55 @@ class Library:
         Raises
         ------
         InputError
-            Read-only library, bad or taken name, an invalid demonstration, or one that
-            does not move. The library is unchanged then.
+            Read-only library, bad or taken name, an invalid or implausible
+            demonstration (:func:`~drake_lfd.io.demonstration_logs.check_plausible_motion`),
+            or one that does not move. The library is unchanged then.
         """
         self._check_writable()
-        check_demo_name(name)
-        for entry in self._manifest.entries:
-            if entry.name.lower() == name.lower():
+        if self._kinematics is None:
+            self._kinematics = UR5eKinematics(X_tool0_E=self.X_tool0_E)
+        pending = _prepare(
+            demonstration, name, description, kinematics=self._kinematics, num_samples=self.num_samples,
+            rotation_length_m=self.rotation_length_m, source=source, label=self.label,
+        )
+        entry = pending.entry
+        log = self.path / entry.file
+        with _writing(self.path, self.label):
+            manifest = read_manifest(self.path, check_logs=False)  # what is on disk now
+            if manifest.X_tool0_E_json != self._manifest.X_tool0_E_json:
                 raise InputError(
-                    f"the library has a demonstration named {entry.name!r} already; "
-                    "remove it first or choose another name",
-                    file=self.label,
-                    field="name",
+                    "the library's end-effector frame changed on disk since it was opened", file=self.label
                 )
-        if not isinstance(description, str):
-            raise InputError(f"expected a string, got {description!r}", field="description")
-        check_demonstration(demonstration)
-        stored = Demonstration(
-            name=name,
-            timestamps=demonstration.timestamps,
-            joint_positions=demonstration.joint_positions,
-            description=description,
-        )
-        D = self._dual_quaternions(stored)
-        if not arc_lengths_from_poses(D, self.rotation_length_m)[-1] > MIN_MOTION_LENGTH:
-            raise InputError(
-                "the demonstration does not move the tool; it has no feature to learn", field="samples"
-            )
-        feature = Feature.from_poses(D, num_samples=self.num_samples, rotation_length_m=self.rotation_length_m)
-        log_bytes = rtde_csv_text(stored).encode("utf-8")
-        relative = f"{DEMOS_DIRECTORY}/{name}.csv"
-        log = self.path / relative
-        entry = DemoEntry(
-            name=name,
-            file=relative,
-            samples=stored.num_samples,
-            duration_s=stored.duration_s,
-            description=description,
-            added=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        )
-        _make_directory(self.path / DEMOS_DIRECTORY)
-        atomic_write_bytes(log, log_bytes)
-        entries = self._manifest.entries + (entry,)
-        try:
-            write_manifest(self.path, self._manifest.with_entries(entries))
-        except BaseException:
-            # Nothing references the new log yet: take it away again.
+            for existing in manifest.entries:
+                if existing.name.lower() == name.lower():
+                    raise InputError(
+                        f"the library has a demonstration named {existing.name!r} already; "
+                        "remove it first or choose another name",
+                        file=self.label,
+                        field="name",
+                    )
+            _make_directory(self.path / DEMOS_DIRECTORY)
+            atomic_write_bytes(log, pending.log_bytes)
+            entries = manifest.entries + (entry,)
             try:
-                log.unlink()
-            except OSError:
-                pass
-            raise
-        self._manifest = self._manifest.with_entries(entries)
-        key = cache_key(log_bytes, self.X_tool0_E, self.num_samples, self.rotation_length_m)
-        on_disk = write_feature_cache(self.cache_path(name), key, feature)
-        self._features[name] = _FeatureRecord(key, feature, on_disk)
+                write_manifest(self.path, manifest.with_entries(entries))
+            except BaseException:
+                # Nothing references the new log yet: take it away again.
+                try:
+                    log.unlink()
+                except OSError:
+                    pass
+                raise
+            self._manifest = manifest.with_entries(entries)
+            key = cache_key(pending.log_bytes, self.X_tool0_E, self.num_samples, self.rotation_length_m)
+            on_disk = write_feature_cache(self.cache_path(name), key, pending.feature)
+        self._features[name] = _FeatureRecord(key, pending.feature, on_disk)
         return entry
 
     def remove(self, name):
-        """Removes a demonstration: the manifest entry first, then its log and cache.
+        """Removes a demonstration: the manifest entry first, then its log and cache,
+        under the library's lock. An entry whose log is missing (or damaged) can be
+        removed: that is how a library is repaired.
 
         Raises
         ------
@@ -488,17 +739,30 @@ class Library:
             Read-only library or no such demonstration.
         """
         self._check_writable()
-        entry = self.entry(name)
-        entries = [e for e in self._manifest.entries if e.name != name]
-        write_manifest(self.path, self._manifest.with_entries(entries))
-        self._manifest = self._manifest.with_entries(entries)
-        self._features.pop(name, None)
-        for path in (self.path / entry.file, self.cache_path(name)):
-            try:
-                path.unlink()
-            except FileNotFoundError:
-                pass
-        fsync_directory(self.path / DEMOS_DIRECTORY)
+        with _writing(self.path, self.label):
+            manifest = read_manifest(self.path, check_logs=False)  # what is on disk now
+            self._manifest = manifest
+            entry = self.entry(name)
+            entries = [e for e in manifest.entries if e.name != name]
+            write_manifest(self.path, manifest.with_entries(entries))
+            self._manifest = manifest.with_entries(entries)
+            self._features.pop(name, None)
+            for path in (self.path / entry.file, self.cache_path(name)):
+                try:
+                    path.unlink()
+                except FileNotFoundError:
+                    pass
+            if (self.path / DEMOS_DIRECTORY).is_dir():
+                fsync_directory(self.path / DEMOS_DIRECTORY)
+
+
+def _remove_unused_directory(directory):
+    """Takes away a directory :meth:`Library.create` made and could not finish."""
+    try:
+        if is_unused_library_directory(directory):
+            shutil.rmtree(directory)
+    except OSError:
+        pass
 
 
 def copy_library(source, destination, **feature_parameters):

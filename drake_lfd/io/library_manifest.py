@@ -1,7 +1,8 @@
 """A library's manifest, ``library.json``: its layout, its entries, read and written.
 
 A library directory holds ``library.json`` (the manifest), ``demos/<name>.csv`` (one
-joint log per demonstration) and ``cache/<name>.npz`` (derived feature caches). The
+joint log per demonstration), ``cache/<name>.npz`` (derived feature caches) and
+``library.lock`` (an empty file whose ``flock`` orders writers, ``file_lock.py``). The
 manifest lists what the library holds and with which end-effector frame::
 
     {
@@ -15,8 +16,8 @@ manifest lists what the library holds and with which end-effector frame::
     }
 
 :func:`read_manifest` checks every field (unknown or missing keys, names, paths that
-leave the directory, missing logs, repeated names ignoring case) and reports the first
-problem as one :class:`~drake_lfd.core.errors.InputError` naming the file and the field;
+leave the directory, missing logs unless asked not to, repeated names ignoring case) and
+reports the first problem as one :class:`~drake_lfd.core.errors.InputError` naming the file and the field;
 :func:`write_manifest` replaces the file atomically. The format is documented for users
 in docs/libraries.rst.
 
@@ -43,6 +44,8 @@ from drake_lfd.io.pose_records import pose_json_from_rigid_transform, rigid_tran
 __all__ = [
     "SCHEMA_VERSION",
     "MANIFEST_NAME",
+    "LOCK_NAME",
+    "TEMPORARY_PATTERN",
     "DEMOS_DIRECTORY",
     "CACHE_DIRECTORY",
     "NAME_PATTERN",
@@ -56,6 +59,10 @@ __all__ = [
 
 SCHEMA_VERSION = 1
 MANIFEST_NAME = "library.json"
+# The library's lock file (empty; writers hold an exclusive flock on it).
+LOCK_NAME = "library.lock"
+# The temporary files of atomic writes (``atomic_files.atomic_write_bytes``), as a glob.
+TEMPORARY_PATTERN = ".*.tmp"
 DEMOS_DIRECTORY = "demos"
 CACHE_DIRECTORY = "cache"
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9_-]+$")
@@ -131,7 +138,7 @@ def _manifest_error(problem, manifest, field=None):
     return InputError(problem, file=manifest, field=field)
 
 
-def _parse_entry(value, index, directory, manifest):
+def _parse_entry(value, index, directory, manifest, check_logs):
     field = f"demos[{index}]"
     if not isinstance(value, dict):
         raise _manifest_error("expected an object describing one demonstration", manifest, field)
@@ -155,8 +162,13 @@ def _parse_entry(value, index, directory, manifest):
         raise _manifest_error(
             f"{file!r} is not a path inside the library directory", manifest, f"{field}.file"
         )
-    if not (directory / relative).is_file():
-        raise _manifest_error(f"the joint log {file} is missing", manifest, f"{field}.file")
+    if check_logs and not (directory / relative).is_file():
+        raise _manifest_error(
+            f"the joint log {file} is missing; restore it, or drop the entry with "
+            f"'drake-lfd library remove {directory} {name}'",
+            manifest,
+            f"{field}.file",
+        )
     samples = value["samples"]
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 2:
         raise _manifest_error(f"expected an integer >= 2, got {samples!r}", manifest, f"{field}.samples")
@@ -178,8 +190,11 @@ def _parse_entry(value, index, directory, manifest):
     )
 
 
-def read_manifest(directory) -> Manifest:
+def read_manifest(directory, *, check_logs=True) -> Manifest:
     """Reads and checks ``directory/library.json``.
+
+    ``check_logs=False`` skips only the check that every entry's joint log exists (what
+    ``library remove`` needs to drop an entry whose log was deleted by hand).
 
     Raises
     ------
@@ -220,7 +235,7 @@ def read_manifest(directory) -> Manifest:
     entries = []
     seen = {}
     for index, value in enumerate(data["demos"]):
-        entry = _parse_entry(value, index, directory, manifest)
+        entry = _parse_entry(value, index, directory, manifest, check_logs)
         if entry.name.lower() in seen:
             raise _manifest_error(
                 f"name {entry.name!r} repeats demos[{seen[entry.name.lower()]}]",

@@ -13,7 +13,10 @@ __all__ = [
     'critical_configurations_json',
     'composition_json',
     'uncovered_json',
+    'joint_trajectory_json',
+    'infeasible_json',
     'plan_json',
+    'describe_infeasible',
     'describe_uncovered',
 ]
 
@@ -75,6 +78,8 @@ def plan_json(result: PlanResult) -> dict:
             "position_m": float(result.max_correction_position_m),
             "rotation_rad": float(result.max_correction_rotation_rad),
         },
+        "joint_trajectory": joint_trajectory_json(result),
+        "infeasible": infeasible_json(result),
         "uncovered": uncovered_json(result),
     }
     if result.planner == "q":
@@ -84,6 +89,28 @@ def plan_json(result: PlanResult) -> dict:
             "refine_episodes": result.refine_episodes,
         }
     return document
+
+
+def joint_trajectory_json(result: PlanResult) -> dict:
+    """``{"t": [...], "q": [[q1..q6], ...]}``: the joint path the plan-time check
+    produced (the controller's law at its period, plan time from 0), the motion
+    ``simulate`` commands; empty lists without one."""
+    path = result.joint_path if result.planned else None
+    if path is None:
+        return {"t": [], "q": []}
+    return {"t": [float(t) for t in path.t], "q": [_floats(q) for q in path.q]}
+
+
+def infeasible_json(result: PlanResult) -> list[dict]:
+    """The segments found blocked for the robot: for ``no_executable_plan`` every
+    composition's; for a plan, those the search set aside on the way."""
+    return [{"from": s.con_from, "to": s.con_to, "reason": s.reason, "detail": s.detail, "demo": s.demo}
+            for s in result.infeasible]
+
+
+def describe_infeasible(result: PlanResult) -> list[str]:
+    """One line per blocking segment (``con_2 -> con_4 (stacking): singularity: ...``)."""
+    return [segment.describe() for segment in result.infeasible]
 
 
 def describe_uncovered(result: PlanResult) -> list[str]:

@@ -108,7 +108,8 @@ def policy_from_document(document, file: str | None = None) -> QPolicy:
 
 def save_policy(policy: QPolicy, path: str | Path) -> None:
     """Writes ``policy`` to ``path`` atomically (temporary file, fsync, rename)."""
-    atomic_write_bytes(Path(path), (json.dumps(policy_document(policy), indent=1) + "\n").encode())
+    # Strict JSON: the table's values are finite (load_policy refuses anything else).
+    atomic_write_bytes(Path(path), (json.dumps(policy_document(policy), indent=1, allow_nan=False) + "\n").encode())
 
 
 def load_policy(path: str | Path) -> QPolicy:

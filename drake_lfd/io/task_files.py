@@ -28,6 +28,9 @@ Example, the paper's Table 8 (filling and pouring)::
       - {name: cup_1_shell, centre: [-0.4, -0.1, -0.05], size: [0.12, 0.12, 0.12]}
     path_constraints:     # judged on a run: tool orientation within tolerance from con to con
       - {kind: orientation, between: [2, 4], euler_zyx: [0, -pi/2, 0], tolerance_deg: 10}
+    tool:                 # shapes fixed to tool0; absent: a cylinder from the flange to E
+      - {name: holder, cylinder: {radius: 0.03, length: 0.15}, p: [0, 0, 0.075]}
+      - {name: cup, box: [0.08, 0.08, 0.1], p: [0, 0, 0.2]}
 
 Values:
 
@@ -61,7 +64,9 @@ import dataclasses
 import math
 import re
 from pathlib import Path
-from typing import Union
+from typing import Optional, Union
+
+import numpy as np
 
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.tasks import (
@@ -72,16 +77,31 @@ from drake_lfd.core.tasks import (
     CriticalConfiguration,
     PathConstraint,
     Task,
+    rigid_transform_from_euler_zyx,
 )
+from drake_lfd.core.tool import ToolShape
 
 # The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
 # scripts, so both report problems alike.
 from drake_lfd.io.simulation_config import PipelineConfig
-from drake_lfd.io.yaml_checks import PoseSpec, Scalar, angle, finite, load_spec, pose, read_text, required, vector
+from drake_lfd.io.yaml_checks import (
+    PoseSpec,
+    Scalar,
+    angle,
+    coordinate,
+    finite,
+    load_spec,
+    pose,
+    read_text,
+    required,
+    vector,
+)
 
 __all__ = [
     "CriticalConfigurationSpec",
     "BoxSpec",
+    "CylinderSpec",
+    "ToolShapeSpec",
     "PathConstraintSpec",
     "TaskSpec",
     "load_task_spec",
@@ -115,11 +135,34 @@ class CriticalConfigurationSpec:
 
 @dataclasses.dataclass
 class BoxSpec:
-    """An axis-aligned box in W: ``centre`` and full edge lengths ``size``, metres."""
+    """A box in W: ``centre`` and full edge lengths ``size``, metres; ``euler_zyx`` turns
+    its edges (axis-aligned if absent)."""
 
     name: str = required(str)
     centre: list[float] = required(list)
     size: list[float] = required(list)
+    euler_zyx: list[Scalar] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+@dataclasses.dataclass
+class CylinderSpec:
+    """A cylinder of the tool: ``radius`` and full ``length`` along its z axis, metres."""
+
+    radius: float = required(float)
+    length: float = required(float)
+
+
+@dataclasses.dataclass
+class ToolShapeSpec:
+    """One shape of the ``tool:`` block, fixed to ``tool0``: a ``box: [x, y, z]`` (full
+    edges) or a ``cylinder: {radius, length}``, centred at ``p`` and turned by
+    ``euler_zyx`` in ``tool0``."""
+
+    name: str = required(str)
+    box: list[float] = dataclasses.field(default_factory=list)
+    cylinder: CylinderSpec = dataclasses.field(default_factory=CylinderSpec)
+    p: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    euler_zyx: list[Scalar] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
 
 
 @dataclasses.dataclass
@@ -147,6 +190,9 @@ class TaskSpec:
     safety_shells: list[BoxSpec] = dataclasses.field(default_factory=list)
     path_constraints: list[PathConstraintSpec] = dataclasses.field(default_factory=list)
     simulation: PipelineConfig = dataclasses.field(default_factory=PipelineConfig)
+    # Absent (None): the default tool sized from X_tool0_E; [] for no tool geometry.
+    tool: Optional[list[ToolShapeSpec]] = dataclasses.field(
+        default=None, metadata={"expected": "a list of tool shapes ([] for none)"})
 
 
 # ----------------------------------------------------------------------------- loading
@@ -188,14 +234,53 @@ _VARIABLE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 def _box(spec, *, file, field):
     if not spec.name:
         raise InputError("a box needs a non-empty name", file=file, field=f"{field}.name")
-    centre = vector(spec.centre, 3, file=file, field=f"{field}.centre", convert=finite)
-    size = vector(spec.size, 3, file=file, field=f"{field}.size", convert=finite)
+    centre = vector(spec.centre, 3, file=file, field=f"{field}.centre", convert=coordinate)
+    size = vector(spec.size, 3, file=file, field=f"{field}.size", convert=coordinate)
     for axis in range(3):
         if not size[axis] > 0.0:
             raise InputError(
                 f"box edge lengths must be > 0, got {size[axis]:g}", file=file, field=f"{field}.size[{axis}]"
             )
-    return Box(name=spec.name, centre=centre, size=size)
+    euler = vector(spec.euler_zyx, 3, file=file, field=f"{field}.euler_zyx", convert=angle)
+    rotation = rigid_transform_from_euler_zyx(np.zeros(3), euler).rotation()
+    return Box(name=spec.name, centre=centre, size=size, rotation=rotation)
+
+
+def _positive(value, *, file, field):
+    value = finite(value, file=file, field=field)
+    if not value > 0.0:
+        raise InputError(f"must be > 0, got {value:g}", file=file, field=field)
+    return value
+
+
+def _tool(specs, *, file):
+    """The ``tool:`` block's shapes (None when the block is absent: the default tool)."""
+    if specs is None:
+        return None
+    shapes, names = [], {}
+    for index, spec in enumerate(specs):
+        field = f"tool[{index}]"
+        if not spec.name:
+            raise InputError("a tool shape needs a non-empty name", file=file, field=f"{field}.name")
+        if spec.name in names:
+            raise InputError(f"tool shape name {spec.name!r} is used by {names[spec.name]} already",
+                             file=file, field=f"{field}.name")
+        names[spec.name] = field
+        X_tool0_S = pose(spec, file=file, field=field)
+        has_cylinder = spec.cylinder.radius != 0.0 or spec.cylinder.length != 0.0
+        if bool(spec.box) == has_cylinder:
+            raise InputError("give exactly one of box: [x, y, z] or cylinder: {radius: r, length: l}",
+                             file=file, field=field)
+        if spec.box:
+            size = vector(spec.box, 3, file=file, field=f"{field}.box", convert=coordinate)
+            for axis in range(3):
+                _positive(size[axis], file=file, field=f"{field}.box[{axis}]")
+            shapes.append(ToolShape.box(spec.name, size, X_tool0_S))
+        else:
+            radius = _positive(spec.cylinder.radius, file=file, field=f"{field}.cylinder.radius")
+            length = _positive(spec.cylinder.length, file=file, field=f"{field}.cylinder.length")
+            shapes.append(ToolShape.cylinder(spec.name, radius, length, X_tool0_S))
+    return tuple(shapes)
 
 
 def task_from_spec(spec, *, file=None):
@@ -221,7 +306,7 @@ def task_from_spec(spec, *, file=None):
             raise InputError(
                 f"{variable!r} is not a variable name (letters, digits, '_'; not 'pi')", file=file, field=field
             )
-        variables[variable] = _interval(values, file=file, field=field, convert=finite)
+        variables[variable] = _interval(values, file=file, field=field, convert=coordinate)
 
     cons = []
     specs = spec.critical_configurations
@@ -247,7 +332,7 @@ def task_from_spec(spec, *, file=None):
             field = f"{base}.p[{axis}]"
             variable = None
             if isinstance(entry, list):
-                lower, upper = _interval(entry, file=file, field=field, convert=finite, context=context)
+                lower, upper = _interval(entry, file=file, field=field, convert=coordinate, context=context)
             elif isinstance(entry, str) and _VARIABLE_NAME.match(entry) and entry not in ("nan", "inf"):
                 if entry not in variables:
                     known = ", ".join(variables) or "none"
@@ -257,7 +342,7 @@ def task_from_spec(spec, *, file=None):
                 variable = entry
                 lower, upper = variables[entry]
             else:
-                lower = upper = finite(entry, file=file, field=field)
+                lower = upper = coordinate(entry, file=file, field=field)
             p_lower.append(lower)
             p_upper.append(upper)
             p_variables.append(variable)
@@ -349,6 +434,7 @@ def task_from_spec(spec, *, file=None):
         description=spec.description,
         file=None if file is None else str(file),
         simulation=spec.simulation.checked(file=file),
+        tool=_tool(spec.tool, file=file),
     )
 
 

@@ -5,8 +5,13 @@ loaded with ``pydrake.common.yaml.yaml_load_typed`` into ``*Spec`` dataclasses. 
 alone, that function names only the leaf of a bad value, and PyYAML silently keeps the
 last of two equal keys. So :func:`load_spec` first reads the raw YAML (refusing duplicated keys)
 and checks it against the Spec types (:func:`check_schema`), and only then calls
-``yaml_load_typed``. :func:`finite`, :func:`angle`, :func:`vector` and :func:`pose`
-then convert and check the values. Every problem becomes one
+``yaml_load_typed``. Before any of that, the YAML's nesting is checked without
+recursion (at most :data:`MAX_YAML_DEPTH` levels: a file nested 500 deep would
+otherwise exhaust Python's recursion limit), and a value that an explicit tag cannot
+convert (``!!float abc``, ``!!int 0.5``) is refused with its line. :func:`finite`,
+:func:`coordinate`, :func:`angle`, :func:`vector` and :func:`pose` then convert and check
+the values; positions farther than :data:`MAX_COORDINATE_M` from the origin are out of
+any robot's reach and refused (so ``1e300`` can never reach the planner as ``inf``). Every problem becomes one
 :class:`~drake_lfd.core.errors.InputError` that names the file and the field
 (``waypoints[2].euler_zyx[0]``, list indices from 0).
 
@@ -39,21 +44,31 @@ from drake_lfd.core.errors import InputError
 from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
 
 __all__ = [
+    "MAX_YAML_DEPTH",
+    "MAX_COORDINATE_M",
     "Scalar",
     "required",
     "PoseSpec",
     "UniqueKeyLoader",
     "yaml_error",
+    "check_yaml_depth",
     "read_text",
     "load_spec",
     "kind_of",
     "check_schema",
     "angle_from_text",
     "finite",
+    "coordinate",
     "angle",
     "vector",
     "pose",
 ]
+
+#: Deepest nesting of mappings and lists a file may have (a task file needs 5).
+MAX_YAML_DEPTH = 32
+#: Largest magnitude of a position coordinate, in metres: beyond any robot's reach, and
+#: far from where squares of it would overflow.
+MAX_COORDINATE_M = 1000.0
 
 # One number-like token: a YAML number, or a string such as "-pi/2", "90deg", "1e-3".
 Scalar = Union[float, int, str]
@@ -100,6 +115,46 @@ class UniqueKeyLoader(yaml.SafeLoader):
             except TypeError:
                 pass  # unhashable keys are reported by the schema check
         return super().construct_mapping(node, deep=deep)
+
+    def construct_object(self, node, deep=False):
+        # A tag that cannot convert its value (``!!float abc``, ``!!int 0.5``) raises a
+        # bare ValueError in PyYAML; make it a YAML error that knows the line.
+        try:
+            return super().construct_object(node, deep=deep)
+        except yaml.YAMLError:
+            raise
+        except (ValueError, TypeError, OverflowError) as error:
+            tag = node.tag.replace("tag:yaml.org,2002:", "!!")
+            raise yaml.constructor.ConstructorError(
+                None, None, f"the tag {tag} cannot read {getattr(node, 'value', '')!r}",
+                node.start_mark,
+            ) from None
+
+
+def check_yaml_depth(text, file, limit=MAX_YAML_DEPTH):
+    """Refuses YAML nested more than ``limit`` levels deep, reading its events (no
+    recursion, so any depth is safe to check).
+
+    Raises
+    ------
+    InputError
+        Naming the line where the limit is passed, or a YAML syntax error.
+    """
+    depth = 0
+    try:
+        for event in yaml.parse(text, Loader=yaml.SafeLoader):
+            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                depth += 1
+                if depth > limit:
+                    mark = event.start_mark
+                    raise InputError(
+                        f"nested more than {limit} levels deep (mappings and lists); no drake-lfd file needs that",
+                        file=file, field=f"line {mark.line + 1} column {mark.column + 1}",
+                    )
+            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                depth -= 1
+    except yaml.YAMLError as error:
+        raise yaml_error(error, file) from None
 
 
 def yaml_error(error, file):
@@ -154,10 +209,13 @@ def load_spec(text, schema, *, file, document, keys):
     InputError
         Invalid YAML, a duplicated or unknown key, or a value of the wrong kind.
     """
+    check_yaml_depth(text, file)
     try:
         raw = yaml.load(text, Loader=UniqueKeyLoader)
     except yaml.YAMLError as error:
         raise yaml_error(error, file) from None
+    except RecursionError:  # deep aliases; the depth check above covers plain nesting
+        raise InputError(f"nested too deeply (more than {MAX_YAML_DEPTH} levels)", file=file) from None
     if raw is None:
         raise InputError(f"{document} is empty", file=file)
     if not isinstance(raw, dict):
@@ -348,6 +406,18 @@ def finite(value, *, file, field, what="a number"):
     return number
 
 
+def coordinate(value, *, file, field):
+    """A position coordinate in metres: finite and within :data:`MAX_COORDINATE_M`."""
+    number = finite(value, file=file, field=field)
+    if abs(number) > MAX_COORDINATE_M:
+        raise InputError(
+            f"{number:g} m is out of any robot's reach (positions are within +-{MAX_COORDINATE_M:g} m "
+            "of the origin)",
+            file=file, field=field,
+        )
+    return number
+
+
 def angle(value, *, file, field):
     """Radians from a checked scalar: a number or any spelling of :func:`angle_from_text`."""
     if isinstance(value, str):
@@ -374,6 +444,6 @@ def vector(values, count, *, file, field, convert):
 def pose(spec, *, file, field):
     """The ``RigidTransform`` of a spec with ``p`` (metres) and ``euler_zyx`` (angles),
     such as ``PoseSpec``. Errors name ``field.p[i]`` or ``field.euler_zyx[i]``."""
-    p = vector(spec.p, 3, file=file, field=f"{field}.p", convert=finite)
+    p = vector(spec.p, 3, file=file, field=f"{field}.p", convert=coordinate)
     euler = vector(spec.euler_zyx, 3, file=file, field=f"{field}.euler_zyx", convert=angle)
     return rigid_transform_from_euler_zyx(p, euler)

@@ -168,6 +168,30 @@ class CompositionProblem:
                 steps.append(Step(d, j, k, a_j, int(a_k), float(matrix[a_j, a_k])))
         return steps
 
+    def forbid(self, step: Step) -> None:
+        """Makes ``step`` (its demo, span and candidates) illegal, for example because its
+        joint path is not executable; both planners then choose among the others."""
+        key = (step.j, step.k, step.demo)
+        if key not in self.cost:
+            return
+        matrix = self.cost[key].copy()
+        matrix[step.a_j, step.a_k] = np.inf
+        if np.isfinite(matrix).any():
+            self.cost[key] = matrix
+        else:
+            del self.cost[key]
+
+    def forbid_state(self, j: int, a_j: int) -> None:
+        """Makes every action from state (j, a_j) illegal (for example: no joint
+        configuration reaches that candidate of con_(j+1))."""
+        for key in [key for key in self.cost if key[0] == j]:
+            matrix = self.cost[key].copy()
+            matrix[a_j, :] = np.inf
+            if np.isfinite(matrix).any():
+                self.cost[key] = matrix
+            else:
+                del self.cost[key]
+
     def covered_gaps(self) -> np.ndarray:
         """``covered[g]`` is True when some legal action spans the gap con_g -> con_(g+1)."""
         covered = np.zeros(self.num_cons - 1, dtype=bool)

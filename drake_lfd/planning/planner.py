@@ -27,11 +27,14 @@ from drake_lfd.core.dual_quaternion import (
     translation_from_dual_quaternion,
 )
 from drake_lfd.planning.exact_planner import plan_exact
+from drake_lfd.planning.executable import InfeasibleSegment, search_executable
+from drake_lfd.planning.problem_size import check_problem_size
 from drake_lfd.core.features import Feature
 from drake_lfd.core.mapping import map_segment
 from drake_lfd.planning.q_learning import DEFAULT_REFINE_EPISODES, QPolicy, plan_q
 from drake_lfd.core.similarity import Tolerances
 from drake_lfd.core.tasks import ConcreteTask, angle_candidates
+from drake_lfd.robot.joint_path import JointPath, JointPathChecker, ur5e_reach_m
 from drake_lfd.core.timing import (
     DEFAULT_MAX_ANGULAR_SPEED_RAD_S,
     DEFAULT_MAX_SPEED_M_S,
@@ -56,6 +59,7 @@ __all__ = [
     'path_clearance',
     'map_span_clear',
     'compose_plan',
+    'out_of_reach',
     'plan_task',
 ]
 
@@ -86,10 +90,14 @@ class UncoveredSegment:
 class PlanResult:
     """Outcome of planning one concrete task.
 
-    ``status`` is ``"planned"`` or ``"demonstration_requested"``. For a plan,
-    ``euler_zyx`` (n, 3) holds the concrete angles chosen for every con, ``timed`` the
-    timed SE(3) poses of E in W. ``greedy_completed`` / ``fallback`` describe the
-    Q-planner (``fallback`` is ``"exact"`` when the greedy walk dead-ended).
+    ``status`` is ``"planned"``, ``"demonstration_requested"`` or, when planned with a
+    joint-space checker, ``"no_executable_plan"`` (demonstrations cover the task but
+    every composition is blocked for the robot: ``infeasible`` says where and why). For a
+    plan, ``euler_zyx`` (n, 3) holds the concrete angles chosen for every con, ``timed``
+    the timed SE(3) poses of E in W and ``joint_path`` (with a checker) the joint path
+    the controller will command; ``infeasible`` then lists the compositions' segments
+    found blocked on the way. ``greedy_completed`` / ``fallback`` describe the Q-planner
+    (``fallback`` is ``"exact"`` when the greedy walk dead-ended).
     """
 
     status: str
@@ -105,6 +113,9 @@ class PlanResult:
     greedy_completed: bool | None = None
     fallback: str | None = None
     refine_episodes: int = 0
+    joint_path: JointPath | None = None
+    infeasible: tuple[InfeasibleSegment, ...] = ()
+    search_rounds: int = 0
 
     @property
     def planned(self) -> bool:
@@ -127,6 +138,7 @@ def build_problem(
     tolerances: Tolerances = Tolerances(),
     max_span: int | None = None,
 ) -> CompositionProblem:
+    check_problem_size(task, features, max_span)  # before anything is allocated
     _, poses = task_candidates(task)
     return CompositionProblem(poses, list(features.values()), tolerances, max_span)
 
@@ -191,18 +203,28 @@ TWIST_CANDIDATES_RAD = np.radians(np.arange(0.0, 360.0, 30.0))
 CLEARANCE_GOAL_M = 0.05 + LINK_RADIUS_M
 
 
-def box_signed_distance(points: np.ndarray, centre: np.ndarray, size: np.ndarray) -> np.ndarray:
-    """Signed distance of points (n, 3) to an axis-aligned box (negative inside), (n,)."""
-    q = np.abs(points - centre) - np.asarray(size) / 2.0
-    outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
-    return outside + np.minimum(q.max(axis=1), 0.0)
+def box_signed_distance(points: np.ndarray, centre: np.ndarray, size: np.ndarray,
+                        rotation: np.ndarray | None = None) -> np.ndarray:
+    """Signed distance of points (n, 3) to a box (negative inside), (n,): its centre,
+    full edges and axes in W (``rotation`` (3, 3), default axis-aligned); the same as
+    :meth:`drake_lfd.core.tasks.Box.signed_distance`."""
+    from drake_lfd.core.tasks import Box
+
+    box = Box(name="", centre=centre, size=size, rotation=np.eye(3) if rotation is None else rotation)
+    return box.signed_distance(points)
 
 
-def _clearances(poses: np.ndarray, keep_out=(), floor_z: float | None = None,
+def _clearances(poses: np.ndarray, keep_out=(), floor_z=None,
                 points_E: np.ndarray | None = None) -> np.ndarray:
-    """Distance of every tracked point along the path to the nearest keep-out box or the
-    floor, shape (n * k,): of the origins of ``poses`` (n, 8), or of ``points_E`` (k, 3),
-    points fixed in E such as the flange and the wrist behind it."""
+    """Distance of every tracked point along the path to the nearest keep-out box
+    (:meth:`Box.signed_distance <drake_lfd.core.tasks.Box.signed_distance>`, boxes
+    of any orientation) or the floor, shape (n * k,): of the origins of ``poses``
+    (n, 8), or of ``points_E`` (k, 3), points fixed in E such as the flange and the
+    wrist behind it. The floor is a level table top's height, or a tilted table (a
+    Box: the plane of its top face, :meth:`~drake_lfd.core.tasks.Box.height_above_top`);
+    ``Workcell.planner_floor`` gives either."""
+    from drake_lfd.core.tasks import Box
+
     if points_E is None:
         p = translation_from_dual_quaternion(poses)
     else:
@@ -210,8 +232,10 @@ def _clearances(poses: np.ndarray, keep_out=(), floor_z: float | None = None,
         p = (np.einsum("nij,kj->nki", T[:, :3, :3], np.asarray(points_E)) + T[:, None, :3, 3]).reshape(-1, 3)
     distance = np.full(len(p), np.inf)
     for box in keep_out:
-        distance = np.minimum(distance, box_signed_distance(p, box.centre, box.size))
-    if floor_z is not None:
+        distance = np.minimum(distance, box.signed_distance(p))
+    if isinstance(floor_z, Box):
+        distance = np.minimum(distance, floor_z.height_above_top(p))
+    elif floor_z is not None:
         distance = np.minimum(distance, p[:, 2] - floor_z)
     return distance
 
@@ -239,8 +263,11 @@ def map_span_clear(feature_poses, allocation, task_poses, keep_out=(), floor_z=N
     for twist in TWIST_CANDIDATES_RAD:
         mapped = map_segment(feature_poses, allocation, task_poses, twist_rad=float(twist))
         distance = _clearances(mapped.poses, keep_out, floor_z, points_E)
-        shortfall = float(np.sum(np.maximum(CLEARANCE_GOAL_M - distance, 0.0)))
-        turn = min(twist, 2 * np.pi - twist)
+        # Rounded to a micrometre, so floating-point noise (a rigid motion of the whole
+        # task) cannot decide between twists that are equally clear; ties go to the
+        # smaller turn, then to the positive one (the loop's order).
+        shortfall = round(float(np.sum(np.maximum(CLEARANCE_GOAL_M - distance, 0.0))), 6)
+        turn = round(float(min(twist, 2 * np.pi - twist)), 9)
         score = (-shortfall, -turn)
         if best is None or score > best[0]:
             best = (score, mapped, float(twist))
@@ -289,6 +316,25 @@ def compose_plan(
     return np.concatenate(pieces), critical, chosen, costs, max_position, max_rotation
 
 
+def out_of_reach(task: ConcreteTask) -> list[InfeasibleSegment]:
+    """The critical configurations farther from the shoulder than the arm can reach
+    (:func:`~drake_lfd.robot.joint_path.ur5e_reach_m`), one segment each (the one
+    arriving at it; con_1 -> con_2 for con_1)."""
+    shoulder = task.X_WB.multiply(np.array([0.0, 0.0, 0.1625]))
+    reach = ur5e_reach_m(task.X_tool0_E)
+    segments = []
+    n = len(task.critical_configurations)
+    for i, con in enumerate(task.critical_configurations):
+        distance = float(np.linalg.norm(np.asarray(con.p, dtype=float) - shoulder))
+        if not distance <= reach:
+            number = i + 1
+            segments.append(InfeasibleSegment(
+                max(number - 1, 1), min(max(number, 2), n), "reach",
+                f"con_{number} at p = {np.round(np.asarray(con.p, dtype=float), 3).tolist()} m is "
+                f"{distance:.3g} m from the shoulder; the UR5e with this tool reaches {reach:.2f} m"))
+    return segments
+
+
 def plan_task(
     task: ConcreteTask,
     features: Mapping[str, Feature],
@@ -303,9 +349,14 @@ def plan_task(
     seed: int = 0,
     floor_z: float | None = None,
     clearance_points_E: np.ndarray | None = None,
+    checker: JointPathChecker | None = None,
 ) -> PlanResult:
     """Plans one concrete task with the named planner (``exact`` or ``q``; the Q-planner
     first refines on the task for ``refine_episodes`` episodes, seeded by ``seed``).
+
+    With a ``checker`` (the task's scene and the controller's law), only executable
+    compositions are returned (``planning/executable.py``): a critical configuration
+    out of reach, or every covering composition blocked, gives ``no_executable_plan``.
 
     Each span's free twist keeps the tool path clear of the task's obstacles and shells
     and above ``floor_z``; ``clearance_points_E`` (k, 3) are the points fixed in E that
@@ -315,35 +366,62 @@ def plan_task(
         raise ValueError(f"planner must be one of {PLANNERS}, got {planner!r}")
     if planner == "q" and policy is None:
         raise ValueError("the q planner needs a policy")
+    check_problem_size(task, features, max_span)  # before anything is allocated
     angles, poses = task_candidates(task)
-    problem = CompositionProblem(poses, list(features.values()), tolerances, max_span)
-    greedy_completed, fallback = None, None
-    if planner == "exact":
-        steps = plan_exact(problem)
-    else:
-        q_plan = plan_q(problem, policy, refine_episodes=refine_episodes, seed=seed)
-        steps, greedy_completed, fallback = q_plan.steps, q_plan.greedy_completed, q_plan.fallback
     nominal = np.array([a[len(a) // 2] for a in angles])
+    refined = refine_episodes if planner == "q" else 0
+    if checker is not None:
+        unreachable = out_of_reach(task)
+        if unreachable:
+            return PlanResult("no_executable_plan", planner, task, nominal, infeasible=tuple(unreachable),
+                              refine_episodes=refined)
+    problem = CompositionProblem(poses, list(features.values()), tolerances, max_span)
+    q_outcome: dict = {}
+
+    def solve(problem: CompositionProblem):
+        if planner == "exact":
+            return plan_exact(problem)
+        q_plan = plan_q(problem, policy, refine_episodes=refine_episodes, seed=seed)
+        q_outcome.update(greedy_completed=q_plan.greedy_completed, fallback=q_plan.fallback)
+        return q_plan.steps
+
+    keep_out = tuple(task.obstacles) + tuple(task.safety_shells)
+    points_E = tool_clearance_points(task.X_tool0_E) if clearance_points_E is None else clearance_points_E
+
+    def compose(steps):
+        path, critical, chosen, costs, max_position, max_rotation = compose_plan(
+            problem, steps, features, angles, keep_out, floor_z, points_E)
+        timed = time_plan(path, critical, max_speed_m_s=max_speed_m_s,
+                          max_angular_speed_rad_s=max_angular_speed_rad_s)
+        return timed, chosen, costs, max_position, max_rotation
+
+    names = list(features)
+    joint_path, blocked, rounds = None, (), 0
+    if checker is None:
+        steps = solve(problem)
+        composed = None if steps is None else compose(steps)
+    else:
+        search = search_executable(problem, solve, compose, checker, names)
+        steps, composed, joint_path, blocked, rounds = (
+            search.steps, search.composed, search.joint_path, search.blocked, search.rounds)
+    greedy_completed, fallback = q_outcome.get("greedy_completed"), q_outcome.get("fallback")
     if steps is None:
+        if blocked:
+            return PlanResult("no_executable_plan", planner, task, nominal, infeasible=blocked,
+                              greedy_completed=greedy_completed, fallback=fallback,
+                              refine_episodes=refined, search_rounds=rounds)
         return PlanResult(
             "demonstration_requested", planner, task, nominal,
             uncovered=tuple(uncovered_segments(problem)),
             greedy_completed=greedy_completed, fallback=fallback,
-            refine_episodes=refine_episodes if planner == "q" else 0,
+            refine_episodes=refined,
         )
-    keep_out = tuple(task.obstacles) + tuple(task.safety_shells)
-    points_E = tool_clearance_points(task.X_tool0_E) if clearance_points_E is None else clearance_points_E
-    path, critical, chosen, costs, max_position, max_rotation = compose_plan(
-        problem, steps, features, angles, keep_out, floor_z, points_E)
-    timed = time_plan(
-        path, critical, max_speed_m_s=max_speed_m_s, max_angular_speed_rad_s=max_angular_speed_rad_s
-    )
-    names = list(features)
+    timed, chosen, costs, max_position, max_rotation = composed
     composition = tuple(
         ComposedStep(names[s.demo], s.j + 1, s.k + 1, cost) for s, cost in zip(steps, costs)
     )
     return PlanResult(
         "planned", planner, task, chosen, composition, float(sum(costs)), timed,
-        max_position, max_rotation, (), greedy_completed, fallback,
-        refine_episodes if planner == "q" else 0,
+        max_position, max_rotation, (), greedy_completed, fallback, refined,
+        joint_path=joint_path, infeasible=blocked, search_rounds=rounds,
     )

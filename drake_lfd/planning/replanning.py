@@ -136,7 +136,7 @@ def task_fingerprint(task: ConcreteTask) -> bytes:
     for X in (task.X_WB, task.X_tool0_E):
         digest.update(np.ascontiguousarray(X.GetAsMatrix4(), dtype=float).tobytes())
     for box in tuple(task.obstacles) + tuple(task.safety_shells):
-        digest.update(np.ascontiguousarray([*box.centre, *box.size], dtype=float).tobytes())
+        digest.update(np.ascontiguousarray([*box.centre, *box.size, *box.rotation.ravel()], dtype=float).tobytes())
     return digest.digest()
 
 

@@ -148,6 +148,8 @@ class DifferentialIKLaw:
         #: the end-effector velocity, the joint whose limit set it (-1: none) and
         #: ``"speed"`` or ``"position"``; ``(nan, -1, "qp")`` when the QP ran.
         self.last_scale: tuple[float, int, str] = (1.0, -1, "")
+        #: The pose error ``X_WE_desired [-] X_WE(q_measured)`` of the last step, (6,).
+        self.last_pose_error = np.zeros(6)
 
     def X_WE(self, q: np.ndarray) -> RigidTransform:
         """Forward kinematics of E at ``q`` (6,), on the law's own context."""
@@ -165,7 +167,8 @@ class DifferentialIKLaw:
             plant_context, JacobianWrtVariable.kV, self._frame_E, self._p_EoEo, self._world_frame, self._world_frame)
         if self._select_columns:
             J = J[:, self._velocity_columns]
-        V = np.asarray(V_WE_desired, dtype=float) + self.position_gain * pose_error(X_WE_desired, X_WE)
+        self.last_pose_error = error = pose_error(X_WE_desired, X_WE)
+        V = np.asarray(V_WE_desired, dtype=float) + self.position_gain * error
         if self.method == "pseudo_inverse":
             return right_pseudo_inverse_velocity(J, V)
         v = self.closed_form_qp_solution(q_command, J, V)

@@ -5,8 +5,8 @@ kinematics of con_1: position and orientation constraints with tight tolerances,
 joint limits, and a quadratic cost towards a preferred elbow-up posture turned towards
 the target. A fixed list of initial guesses (the same for every call) covers the
 UR5e's IK branches (shoulder towards / away from the target, elbow up / down, wrist
-flipped or not); among the solutions found, a collision-free one (with respect to
-obstacles and safety shells) is preferred, then the lowest cost, then the earliest
+flipped or not); among the solutions found, a collision-free one (no link or tool
+shape inside an obstacle or safety shell) is preferred, then the lowest cost, then the earliest
 guess. The result is therefore deterministic for a given task. docs/method.rst (Closed
 loop and success) says where this enters a run.
 
@@ -43,6 +43,7 @@ __all__ = [
     "elbow_up_nominal",
     "initial_guesses",
     "solve_initial_configuration",
+    "initial_configuration_candidates",
 ]
 
 # Constraint tolerances handed to the IK solver (not the closed loop's success
@@ -165,8 +166,30 @@ def solve_initial_configuration(
     con: int = 1,
     q_nominal: np.ndarray | None = None,
     scene: KinematicScene | None = None,
+    tool=None,
 ) -> InitialConfiguration:
-    """Joint configuration placing E at ``X_WE_desired``, elbow up when possible.
+    """Joint configuration placing E at ``X_WE_desired``, elbow up when possible: the
+    first of :func:`initial_configuration_candidates` (same parameters)."""
+    return initial_configuration_candidates(
+        X_WE_desired, X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles, safety_shells=safety_shells,
+        con=con, q_nominal=q_nominal, scene=scene, tool=tool)[0]
+
+
+def initial_configuration_candidates(
+    X_WE_desired: RigidTransform,
+    *,
+    X_WB: RigidTransform | None = None,
+    X_tool0_E: RigidTransform | None = None,
+    obstacles: Iterable[Box] = (),
+    safety_shells: Iterable[Box] = (),
+    con: int = 1,
+    q_nominal: np.ndarray | None = None,
+    scene: KinematicScene | None = None,
+    tool=None,
+) -> list[InitialConfiguration]:
+    """Every distinct joint configuration (IK branch) placing E at ``X_WE_desired``, best
+    first: collision-free before colliding, then closest to the preferred posture (elbow
+    up, facing the target), then by guess.
 
     Parameters
     ----------
@@ -181,11 +204,15 @@ def solve_initial_configuration(
     q_nominal : array, shape (6,), optional
         Preferred posture; :func:`elbow_up_nominal` of the target by default.
     scene : KinematicScene, optional
-        Reuse a scene already built for these frames and boxes.
+        Reuse a scene already built for these frames and boxes (a work cell's: its
+        tool's shapes count in the clearance like the links).
+    tool : tuple of ToolShape, optional
+        Without ``scene``: the tool (None: the default of ``X_tool0_E``).
 
     Returns
     -------
-    InitialConfiguration
+    list of InitialConfiguration
+        Solutions closer than 1e-6 rad (all joints) to a better one are left out.
 
     Raises
     ------
@@ -194,7 +221,7 @@ def solve_initial_configuration(
     """
     if scene is None:
         scene = KinematicScene(
-            X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles, safety_shells=safety_shells
+            X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles, safety_shells=safety_shells, tool=tool
         )
     plant, model = scene.plant, scene.model
     frame_E = plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)
@@ -270,4 +297,8 @@ def solve_initial_configuration(
             field=f"critical_configurations[{con - 1}]",
         )
     candidates.sort(key=lambda item: item[:3])
-    return candidates[0][3]
+    distinct: list[InitialConfiguration] = []
+    for *_, candidate in candidates:
+        if all(np.max(np.abs(candidate.q - kept.q)) > 1e-6 for kept in distinct):
+            distinct.append(candidate)
+    return distinct

@@ -16,6 +16,9 @@ reading logs (:mod:`drake_lfd.io.demonstration_logs`).
 
 from __future__ import annotations
 
+import os
+import threading
+
 import numpy as np
 from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import Parser
@@ -23,6 +26,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import FixedOffsetFrame, ModelInstanceIndex
 
 from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
+from drake_lfd.core.network_policy import NETWORK_VARIABLE, drake_allows
 from drake_lfd.core.resources import models_directory
 
 __all__ = [
@@ -56,9 +60,33 @@ END_EFFECTOR_FRAME_NAME = "E"
 NUM_JOINTS = len(UR5E_JOINT_NAMES)
 
 
+_ENVIRONMENT_LOCK = threading.Lock()
+
+
 def make_parser(plant: MultibodyPlant) -> Parser:
-    """A Parser whose package map resolves ``package://drake_lfd_models/...`` offline."""
-    parser = Parser(plant)
+    """A Parser whose package map resolves ``package://drake_lfd_models/...`` offline.
+
+    Works under ``DRAKE_ALLOW_NETWORK=none`` too, with an empty download cache
+    (:mod:`drake_lfd.core.network_policy`): Drake's check that ``drake_models`` could
+    be fetched is lifted only while the Parser is constructed (construction downloads
+    nothing), and ``drake_models`` is then removed from the Parser, so nothing of it can
+    ever be fetched through it.
+    """
+    if drake_allows("package_map"):
+        parser = Parser(plant)
+    else:
+        with _ENVIRONMENT_LOCK:
+            saved = os.environ.get(NETWORK_VARIABLE)
+            os.environ[NETWORK_VARIABLE] = "package_map"
+            try:
+                parser = Parser(plant)
+            finally:
+                if saved is None:
+                    del os.environ[NETWORK_VARIABLE]
+                else:
+                    os.environ[NETWORK_VARIABLE] = saved
+        if parser.package_map().Contains("drake_models"):
+            parser.package_map().Remove("drake_models")
     parser.package_map().AddPackageXml(str(models_directory() / "package.xml"))
     return parser
 

@@ -1,10 +1,16 @@
-"""The task's scene on the plant: obstacles, keep-out safety shells and an optional table.
+"""The work cell on the plant: obstacles, keep-out safety shells, the table and the tool.
 
-Every box is registered through the MultibodyPlant on its world body, with a collision
-(proximity) and a visual (illustration) geometry: obstacles red, safety shells
-translucent purple (as in the paper's Fig. 8), the table grey. Nothing here registers
-geometry in SceneGraph directly (the plant throws on first contact with geometry it did
-not register itself); SceneGraph is only asked to filter collisions.
+:func:`add_scene` puts a :class:`~drake_lfd.robot.workcell.Workcell`'s geometry on a
+plant. Every box is registered through the MultibodyPlant on its world body, posed by
+its centre and rotation, with a collision (proximity) and a visual (illustration)
+geometry: obstacles red, safety shells translucent purple (as in the paper's Fig. 8),
+the table grey. The tool's shapes (:mod:`drake_lfd.core.tool`) are registered on the
+body of ``tool0`` (``wrist_3_link``), collision and visual, named ``tool/<name>``: they
+join the robot's geometries in every clearance and shell check, and, like the arm's
+links (the URDF filters them among themselves), they are filtered out of contact with
+the arm. Nothing here registers geometry in SceneGraph directly (the plant throws on
+first contact with geometry it did not register itself); SceneGraph is only asked to
+filter collisions.
 
 A safety shell is a keep-out volume, not a wall: robot-vs-shell pairs are excluded from
 contact with a ``CollisionFilterDeclaration``, so a shell never pushes the robot.
@@ -18,7 +24,8 @@ configurations (the initial inverse kinematics, an independent recomputation of 
 clearances from its logged joint positions).
 
 Not for: building the simulation diagram (``diagrams/station.py``), monitoring a run
-(``systems/shell_monitor.py``), or the boxes themselves (:class:`~drake_lfd.core.tasks.Box`).
+(``systems/shell_monitor.py``), the boxes themselves (:class:`~drake_lfd.core.tasks.Box`),
+or what the scene holds (``workcell.py``).
 """
 
 from __future__ import annotations
@@ -30,9 +37,11 @@ import numpy as np
 from pydrake.geometry import (
     Box as BoxShape,
     CollisionFilterDeclaration,
+    Cylinder,
     GeometryId,
     GeometrySet,
     QueryObject,
+    Role,
     SceneGraph,
 )
 from pydrake.math import RigidTransform
@@ -41,12 +50,15 @@ from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import DiagramBuilder
 
 from drake_lfd.core.tasks import Box
-from drake_lfd.robot.kinematics import add_ur5e
+from drake_lfd.core.tool import ToolShape
+from drake_lfd.robot.kinematics import TOOL0_FRAME_NAME, add_ur5e
+from drake_lfd.robot.workcell import Workcell, table_under_robot
 
 __all__ = [
     "OBSTACLE_RGBA",
     "SAFETY_SHELL_RGBA",
     "TABLE_RGBA",
+    "TOOL_RGBA",
     "OBSTACLE",
     "SAFETY_SHELL",
     "SceneGeometry",
@@ -60,6 +72,7 @@ __all__ = [
 OBSTACLE_RGBA = np.array([0.85, 0.12, 0.10, 1.0])
 SAFETY_SHELL_RGBA = np.array([0.55, 0.25, 0.85, 0.25])
 TABLE_RGBA = np.array([0.55, 0.55, 0.55, 1.0])
+TOOL_RGBA = np.array([0.25, 0.45, 0.30, 1.0])
 # Dry steel-ish friction; only obstacles and the table can touch the robot.
 _FRICTION = CoulombFriction(static_friction=0.5, dynamic_friction=0.5)
 
@@ -74,13 +87,15 @@ class SceneGeometry:
     Attributes
     ----------
     robot_geometry_ids : tuple of GeometryId
-        Every collision geometry of the robot model.
+        Every collision geometry of the robot model, then the tool's.
     obstacle_geometry_ids, shell_geometry_ids : tuple of GeometryId
         One per obstacle / safety shell, in the order given.
     table_geometry_id : GeometryId or None
+    tool_geometry_ids : tuple of GeometryId
+        The tool's shapes, in the order given (also in ``robot_geometry_ids``).
     names : mapping GeometryId -> str
-        Robot geometries as ``<link>/<geometry>`` (``forearm_link/forearm_tube``), boxes
-        by their task name (``shell_1``).
+        Robot geometries as ``<link>/<geometry>`` (``forearm_link/forearm_tube``), tool
+        shapes as ``tool/<name>``, boxes by their task name (``shell_1``).
     kinds : mapping GeometryId -> str
         ``"obstacle"`` or ``"safety shell"`` for each box.
     """
@@ -89,6 +104,7 @@ class SceneGeometry:
     obstacle_geometry_ids: tuple = ()
     shell_geometry_ids: tuple = ()
     table_geometry_id: GeometryId | None = None
+    tool_geometry_ids: tuple = ()
     names: Mapping = field(default_factory=dict)
     kinds: Mapping = field(default_factory=dict)
 
@@ -105,24 +121,26 @@ class SceneGeometry:
         return self.names.get(geometry_id, str(geometry_id))
 
 
-def table_under_robot(X_WB: RigidTransform | None = None, *, size=(1.6, 1.2, 0.04), name="table") -> Box:
-    """A table whose top is flush with the base of an upright robot, centred under it.
-
-    Not watched by the shell monitor (the base stands on it); the arm touching it is
-    real contact.
-    """
-    X_WB = RigidTransform() if X_WB is None else X_WB
-    size = np.asarray(size, dtype=float)
-    centre = X_WB.translation() - np.array([0.0, 0.0, 0.5 * size[2]])
-    return Box(name=name, centre=centre, size=size)
-
-
 def _register_box(plant: MultibodyPlant, box: Box, prefix: str, rgba: np.ndarray) -> GeometryId:
     shape = BoxShape(*np.asarray(box.size, dtype=float))
-    X_WG = RigidTransform(np.asarray(box.centre, dtype=float))
+    X_WG = box.X_WBox
     name = f"{prefix}::{box.name}"
     geometry_id = plant.RegisterCollisionGeometry(plant.world_body(), X_WG, shape, name, _FRICTION)
     plant.RegisterVisualGeometry(plant.world_body(), X_WG, shape, name, rgba)
+    return geometry_id
+
+
+def _register_tool_shape(plant: MultibodyPlant, model: ModelInstanceIndex, shape: ToolShape) -> GeometryId:
+    """One tool shape on the body of ``tool0``, collision and visual."""
+    tool0 = plant.GetFrameByName(TOOL0_FRAME_NAME, model)
+    X_BS = tool0.GetFixedPoseInBodyFrame().multiply(shape.X_tool0_S)
+    if shape.kind == "box":
+        geometry = BoxShape(*np.asarray(shape.size, dtype=float))
+    else:
+        geometry = Cylinder(shape.radius, shape.length)
+    name = shape.geometry_name
+    geometry_id = plant.RegisterCollisionGeometry(tool0.body(), X_BS, geometry, name, _FRICTION)
+    plant.RegisterVisualGeometry(tool0.body(), X_BS, geometry, name, TOOL_RGBA)
     return geometry_id
 
 
@@ -132,7 +150,11 @@ def robot_geometry_names(plant: MultibodyPlant, scene_graph: SceneGraph, model: 
     names = {}
     for body_index in plant.GetBodyIndices(model):
         body = plant.get_body(body_index)
-        for geometry_id in plant.GetCollisionGeometriesForBody(body):
+        # The plant's list holds references into a vector that registering more geometry
+        # on the body (the tool) reallocates; keep the inspector's copies, in its order.
+        copies = inspector.GetGeometries(plant.GetBodyFrameIdOrThrow(body_index), Role.kProximity)
+        for reference in plant.GetCollisionGeometriesForBody(body):
+            geometry_id = next(copy for copy in copies if copy == reference)
             # SceneGraph names are scoped "<model>::<geometry>"; keep the geometry part.
             short = inspector.GetName(geometry_id).split("::")[-1]
             names[geometry_id] = f"{body.name()}/{short}"
@@ -147,8 +169,10 @@ def add_scene(
     obstacles: Iterable[Box] = (),
     safety_shells: Iterable[Box] = (),
     table: Box | None = None,
+    tool: Iterable[ToolShape] = (),
 ) -> SceneGeometry:
-    """Registers the boxes on ``plant``'s world body and keeps shells from pushing ``model``.
+    """Registers the boxes on ``plant``'s world body and the tool on ``model``'s flange,
+    and keeps shells from pushing the robot.
 
     Call after the robot ``model`` has been added (its geometries must exist) and before
     ``plant.Finalize()``. ``plant`` must be registered with ``scene_graph``.
@@ -156,9 +180,13 @@ def add_scene(
     Parameters
     ----------
     obstacles, safety_shells : iterable of :class:`drake_lfd.core.tasks.Box`
-        Axis-aligned boxes in W (``name``, ``centre`` (3,), ``size`` (3,) full edges).
+        Boxes in W (``name``, ``centre`` (3,), ``size`` (3,) full edges, ``rotation``).
     table : Box, optional
-        A grey box the robot can rest on or touch (see :func:`table_under_robot`).
+        A grey box the robot can rest on or touch (see
+        :func:`~drake_lfd.robot.workcell.table_under_robot`).
+    tool : iterable of :class:`~drake_lfd.core.tool.ToolShape`
+        Shapes fixed to ``tool0``; none by default (here: the defaults are the
+        work cell's, :class:`~drake_lfd.robot.workcell.Workcell`).
 
     Returns
     -------
@@ -166,7 +194,18 @@ def add_scene(
     """
     obstacles, safety_shells = tuple(obstacles), tuple(safety_shells)
     names = robot_geometry_names(plant, scene_graph, model)
-    robot_ids = tuple(names)
+    arm_ids = tuple(names)
+    tool_ids = []
+    for shape in tool:
+        geometry_id = _register_tool_shape(plant, model, shape)
+        tool_ids.append(geometry_id)
+        names[geometry_id] = shape.geometry_name
+    if tool_ids:
+        # Like the arm's links among themselves (the URDF's filter group): no self-contact.
+        scene_graph.collision_filter_manager().Apply(
+            CollisionFilterDeclaration().ExcludeBetween(GeometrySet(list(arm_ids)), GeometrySet(tool_ids))
+        )
+    robot_ids = arm_ids + tuple(tool_ids)
     kinds = {}
     obstacle_ids = []
     for box in obstacles:
@@ -191,6 +230,7 @@ def add_scene(
         obstacle_geometry_ids=tuple(obstacle_ids),
         shell_geometry_ids=tuple(shell_ids),
         table_geometry_id=table_id,
+        tool_geometry_ids=tuple(tool_ids),
         names=names,
         kinds=kinds,
     )
@@ -209,38 +249,50 @@ def min_signed_distances(query_object: QueryObject, robot_geometry_ids, box_geom
 
 
 class KinematicScene:
-    """The robot and the scene on a kinematics-only plant: clearances of configurations.
+    """The robot, its tool and the scene on a kinematics-only plant: clearances of
+    configurations.
 
     Parameters
     ----------
+    workcell : Workcell, optional
+        The scene (:meth:`Workcell.of` a task); or give its parts:
     X_WB, X_tool0_E : RigidTransform, optional
     obstacles, safety_shells : iterable of Box
     table : Box, optional
+    tool : iterable of ToolShape, optional
+        None: the default tool of ``X_tool0_E`` (:func:`drake_lfd.core.tool.default_tool`).
 
     Attributes
     ----------
-    plant, scene_graph, model, diagram, geometry (SceneGeometry)
+    plant, scene_graph, model, diagram, geometry (SceneGeometry), workcell
     """
 
     def __init__(
         self,
+        workcell: Workcell | None = None,
         *,
         X_WB: RigidTransform | None = None,
         X_tool0_E: RigidTransform | None = None,
         obstacles: Iterable[Box] = (),
         safety_shells: Iterable[Box] = (),
         table: Box | None = None,
+        tool: Iterable[ToolShape] | None = None,
     ):
+        if workcell is None:
+            workcell = Workcell.make(X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles,
+                                     safety_shells=safety_shells, table=table, tool=tool)
+        self.workcell = workcell
         builder = DiagramBuilder()
         self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
-        self.model = add_ur5e(self.plant, X_WB=X_WB, X_tool0_E=X_tool0_E)
+        self.model = add_ur5e(self.plant, X_WB=workcell.X_WB, X_tool0_E=workcell.X_tool0_E)
         self.geometry = add_scene(
             self.plant,
             self.scene_graph,
             model=self.model,
-            obstacles=obstacles,
-            safety_shells=safety_shells,
-            table=table,
+            obstacles=workcell.obstacles,
+            safety_shells=workcell.safety_shells,
+            table=workcell.table,
+            tool=workcell.tool,
         )
         self.plant.Finalize()
         self.diagram = builder.Build()

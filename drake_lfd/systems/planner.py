@@ -22,6 +22,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, DiagramBuilder, EventStatus, LeafSystem, OutputPort
 
 from drake_lfd.core.tasks import ConcreteTask
+from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.planning.planner import PLANNERS, PlanResult, plan_task
 from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan, replan, task_fingerprint
@@ -56,6 +57,9 @@ class PlannerSystem(LeafSystem):
         Simulation time at which the first plan's motion starts (the settling time).
     floor_z : float, optional
         Height of the table top the tool path must stay above.
+    checker : JointPathChecker, optional
+        The plan-time joint-space check of the scene (:mod:`drake_lfd.robot.joint_path`):
+        with it, only executable compositions are planned.
     check_period : float
         How often the inputs are compared with the plan's, s.
     """
@@ -67,6 +71,7 @@ class PlannerSystem(LeafSystem):
         policy: QPolicy | None = None,
         start_time_s: float = 0.0,
         floor_z: float | None = None,
+        checker: JointPathChecker | None = None,
         check_period: float = 0.05,
     ):
         super().__init__()
@@ -78,6 +83,7 @@ class PlannerSystem(LeafSystem):
         self._policy = policy
         self._start_time_s = float(start_time_s)
         self._floor_z = floor_z
+        self._checker = checker
         self.task_input_port = self.DeclareAbstractInputPort("task", AbstractValue.Make(object()))
         self.library_input_port = self.DeclareAbstractInputPort("library", AbstractValue.Make(object()))
         self._state_index = self.DeclareAbstractState(AbstractValue.Make(object()))
@@ -104,7 +110,8 @@ class PlannerSystem(LeafSystem):
     def plan(self, task: ConcreteTask, library: LibraryFeatures) -> PlanResult:
         """One plan of ``task`` with this system's settings (no state involved)."""
         return plan_task(task, library.features, planner=self._planner, policy=self._policy,
-                         seed=0 if task.seed is None else int(task.seed), floor_z=self._floor_z)
+                         seed=0 if task.seed is None else int(task.seed), floor_z=self._floor_z,
+                         checker=self._checker)
 
     def scheduled_plan(self, context: Context) -> ScheduledPlan | None:
         """The plan in ``context`` (this system's), or None before the first."""

@@ -1,0 +1,86 @@
+"""Planning time before and after the joint-space check (executable plans), printed.
+
+Run: ``python benchmarks/bench_executable_planning.py [--trials 5]``.
+
+For the paper's three tasks (transferring and filling-and-pouring with ``paper5``,
+assembling with ``paper6``; trials 0..N-1 drawn as ``simulate`` draws them) and for a
+20-configuration task chained from a 30-demonstration library (the five paper
+demonstrations, each under six names), prints the median and the largest wall time of
+``plan_task`` without the check ("before") and with it ("after": lazy search over
+compositions, the joint path of each checked one followed at the controller's 10 ms),
+with the rounds of the search and the status. The check is built once per scene, as
+``plan``, ``simulate`` and the planner system do.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from drake_lfd.core.resources import scenarios_directory
+from drake_lfd.core.tasks import draw_trial
+from drake_lfd.io.library import Library, library_features
+from drake_lfd.io.task_files import load_task
+from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.random_tasks import chained_task
+from drake_lfd.robot.joint_path import JointPathChecker
+from drake_lfd.robot.scene import KinematicScene, table_under_robot
+
+
+def checker_for(task) -> tuple[JointPathChecker, float]:
+    table = table_under_robot(task.X_WB)
+    scene = KinematicScene(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, obstacles=task.obstacles,
+                           safety_shells=task.safety_shells, table=table, tool=getattr(task, "tool", None))
+    checker = JointPathChecker(scene, X_WB=task.X_WB, table_geometry_ids=[scene.geometry.table_geometry_id])
+    return checker, float(table.centre[2] + table.size[2] / 2)
+
+
+def timed(function):
+    start = time.perf_counter()
+    value = function()
+    return value, time.perf_counter() - start
+
+
+def report(label, before, after, results):
+    rounds = [r.search_rounds for r in results]
+    statuses = sorted({r.status for r in results})
+    print(f"{label:34s} before: median {1000 * np.median(before):6.0f} ms, max {1000 * max(before):6.0f} ms | "
+          f"after: median {1000 * np.median(after):6.0f} ms, max {1000 * max(after):6.0f} ms | "
+          f"rounds {min(rounds)}-{max(rounds)}, {', '.join(statuses)}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--trials", type=int, default=5)
+    args = parser.parse_args()
+    for name, library in (("transferring", "paper5"), ("filling_pouring", "paper5"), ("assembling", "paper6")):
+        task = load_task(scenarios_directory() / f"{name}.yaml")
+        features = library_features(Library.open(library))
+        checker, floor = checker_for(task)
+        before, after, results = [], [], []
+        for seed in range(args.trials):
+            concrete = draw_trial(task, seed)
+            before.append(timed(lambda: plan_task(concrete, features, floor_z=floor))[1])
+            result, seconds = timed(lambda: plan_task(concrete, features, floor_z=floor, checker=checker))
+            after.append(seconds)
+            results.append(result)
+        report(f"{name} ({library}, {args.trials} trials)", before, after, results)
+
+    paper5 = library_features(Library.open("paper5"))
+    library30 = {f"{name}_{copy}": feature for copy in range(6) for name, feature in paper5.items()}
+    transferring = load_task(scenarios_directory() / "transferring.yaml")
+    checker, floor = checker_for(transferring)
+    before, after, results = [], [], []
+    for seed in range(args.trials):
+        task, _ = chained_task(np.random.default_rng(seed), paper5, num_cons=20, name="chained20")
+        before.append(timed(lambda: plan_task(task, library30))[1])
+        result, seconds = timed(lambda: plan_task(task, library30, checker=checker))
+        after.append(seconds)
+        results.append(result)
+    report(f"20 cons, 30 demos ({args.trials} tasks)", before, after, results)
+
+
+if __name__ == "__main__":
+    main()

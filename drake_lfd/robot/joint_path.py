@@ -1,0 +1,492 @@
+"""Plan-time joint-space check: follow a timed SE(3) plan the way the controller will.
+
+The composition is planned in SE(3) (the paper's Section 5 admits the result may not be
+executable). Before a plan is promised, :class:`JointPathChecker` follows it
+kinematically with the controller's own differential-IK law
+(:class:`~drake_lfd.robot.differential_ik_law.DifferentialIKLaw`, same period, gain and
+limits; measured = commanded positions), from a start configuration, and checks at every
+step:
+
+- **joint limits**: the law keeps the command inside them by slowing the motion; when
+  that makes E fall behind the plan by more than the path tolerance, the joint whose
+  limit bound is named;
+- **singularities**, the UR5e's three: elbow straight (``|sin q3|`` below
+  ``elbow_margin``), wrist aligned (``|sin q5|`` below ``wrist_margin``) and wrist centre
+  on the shoulder axis (``|a2 cos q2 + a3 cos(q2 + q3) + d5 sin(q2 + q3 + q4)|``, the
+  wrist point's distance from the shoulder axis in the arm's plane, below
+  ``shoulder_margin_m``). The Jacobian's determinant is ``a2 a3 sin q3 sin q5`` times
+  that distance, so these are exactly where it vanishes; near them joint speeds blow up
+  for ordinary tool motions;
+- **clearance**: every robot and tool geometry at least ``clearance_m`` from every
+  obstacle, safety shell and the table (the base and shoulder links, which stand on the
+  table, are not checked against it), with Drake's signed distances; pairs the motion
+  bound (:mod:`~drake_lfd.robot.motion_bounds`) proves far are skipped;
+- **reach**: E within the success tolerances (5 mm, 2 deg) of each critical
+  configuration when it is due, and within the path tolerance (5 cm, 15 deg) everywhere.
+
+It stops at the first violation and says which it was, when, and in which span. A
+configuration beyond the arm's reach (farther from the shoulder than the arm's links
+and tool together) is refused before following anything.
+
+Start configurations and windings: :meth:`JointPathChecker.follow_from_candidates`
+tries the inverse-kinematics branches of the first pose, best first, and for each the
+2 pi windings of the joints that can turn more than a full circle (all six on the
+UR5e), shifting the start by one turn away from a limit the path ran into; the whole
+plan decides, not con_1 alone.
+
+Not for: choosing a composition (``planning/``), simulating the robot (``diagrams/``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from pydrake.math import RigidTransform
+
+from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
+from drake_lfd.core.timing import TimedPlan
+from drake_lfd.robot.differential_ik_law import (
+    DEFAULT_POSITION_GAIN,
+    DEFAULT_TIME_STEP_S,
+    DEFAULT_VELOCITY_LIMIT_FRACTION,
+    DifferentialIKLaw,
+    pose_error,
+)
+from drake_lfd.robot.initial_ik import UnreachableConfigurationError, initial_configuration_candidates
+from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, UR5E_JOINT_NAMES
+from drake_lfd.robot.motion_bounds import motion_bounds
+from drake_lfd.robot.scene import KinematicScene
+
+__all__ = [
+    "REASONS",
+    "JointPathLimits",
+    "Blocker",
+    "JointPath",
+    "shoulder_singularity_distance",
+    "ur5e_reach_m",
+    "JointPathChecker",
+]
+
+REASONS = ("reach", "joint_limit", "singularity", "collision")
+
+# UR5e DH parameters (m): the shoulder singularity's distance and the reach bound.
+_A2, _A3, _D1, _D4, _D5, _D6 = -0.425, -0.3922, 0.1625, 0.1333, 0.0997, 0.0996
+# Links standing on the table: never checked against it.
+_ON_TABLE_LINKS = ("base_link", "shoulder_link")
+
+
+@dataclasses.dataclass(frozen=True)
+class JointPathLimits:
+    """What a joint path must keep to (all configurable; the defaults are documented in
+    the module docstring).
+
+    Attributes
+    ----------
+    elbow_margin, wrist_margin : float
+        Least ``|sin q3|`` and ``|sin q5|`` (0.06, about 3.4 deg from straight/aligned:
+        a closed-loop run is judged against 0.05, and the servos' lag moves the joints
+        by far less than the difference).
+    shoulder_margin_m : float
+        Least distance of the wrist point from the shoulder axis, m (0.05).
+    clearance_m : float
+        Least signed distance of any robot or tool geometry to any box, m (0.01).
+    position_tolerance_m, rotation_tolerance_rad : float
+        At each critical configuration when due (the closed loop's success tolerances).
+    path_position_tolerance_m, path_rotation_tolerance_rad : float
+        Anywhere along the path (5 cm, 15 deg: a motion slowed by a speed limit may lag
+        and catch up by the next critical configuration; the clearance is checked on
+        the lagging path itself).
+    settle_steps : int
+        Controller steps followed after the plan's end (the closed loop keeps tracking).
+    """
+
+    elbow_margin: float = 0.06
+    wrist_margin: float = 0.06
+    shoulder_margin_m: float = 0.05
+    clearance_m: float = 0.01
+    position_tolerance_m: float = 0.005
+    rotation_tolerance_rad: float = math.radians(2.0)
+    path_position_tolerance_m: float = 0.05
+    path_rotation_tolerance_rad: float = math.radians(15.0)
+    settle_steps: int = 10
+
+
+@dataclasses.dataclass(frozen=True)
+class Blocker:
+    """Why a joint path is not executable.
+
+    Attributes
+    ----------
+    reason : str
+        One of :data:`REASONS`.
+    detail : str
+        One line for a person (``forearm_link/forearm enters safety shell 'shell' by
+        4.2 mm``).
+    time_s : float
+        Plan time of the violation.
+    span : int
+        0-based index of the span (between consecutive critical configurations) it is in.
+    con : int or None
+        1-based critical configuration concerned (``reach`` at a critical configuration).
+    """
+
+    reason: str
+    detail: str
+    time_s: float
+    span: int
+    con: int | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class JointPath:
+    """The joint path of a plan, as the controller would command it.
+
+    Attributes
+    ----------
+    t : array (m,)
+        Plan times of the samples (the controller's period), s.
+    q : array (m, 6)
+        Commanded joint positions.
+    blocker : Blocker or None
+        The first violation (the path then ends there); None when executable.
+    critical_errors : tuple of (position_m, rotation_rad)
+        At each critical configuration reached before the blocker.
+    min_clearance_m : float
+        Least clearance measured along the path (inf without boxes).
+    min_elbow, min_wrist, min_shoulder_m : float
+        Least ``|sin q3|``, ``|sin q5|`` and shoulder distance along the path.
+    start_index : int
+        Which start configuration candidate it followed from.
+    clearances : array (m,)
+        The least distance measured at each sample (inf where every pair was proven
+        beyond the clearance).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    blocker: Blocker | None
+    critical_errors: tuple[tuple[float, float], ...]
+    min_clearance_m: float
+    min_elbow: float
+    min_wrist: float
+    min_shoulder_m: float
+    start_index: int = 0
+    clearances: np.ndarray | None = None
+
+    @property
+    def executable(self) -> bool:
+        return self.blocker is None
+
+
+def shoulder_singularity_distance(q: np.ndarray) -> float:
+    """Signed distance of the UR5e's wrist point from the shoulder axis, m (zero at the
+    shoulder singularity)."""
+    return _A2 * math.cos(q[1]) + _A3 * math.cos(q[1] + q[2]) + _D5 * math.sin(q[1] + q[2] + q[3])
+
+
+def ur5e_reach_m(X_tool0_E: RigidTransform | None = None) -> float:
+    """An upper bound on the distance from the shoulder joint's centre to E, m: the
+    links' lengths and offsets plus the tool's."""
+    tool = 0.0 if X_tool0_E is None else float(np.linalg.norm(X_tool0_E.translation()))
+    return abs(_A2) + abs(_A3) + _D4 + _D5 + _D6 + tool
+
+
+class JointPathChecker:
+    """Follows timed plans kinematically in a scene and reports the first violation.
+
+    Parameters
+    ----------
+    scene : KinematicScene
+        The robot (with its tool) and the boxes; its plant also serves the law.
+    X_WB : RigidTransform, optional
+        The robot base (for the preferred inverse-kinematics posture).
+    table_geometry_ids : sequence of GeometryId, optional
+        Boxes to check all links but the base and shoulder against (the table).
+    limits : JointPathLimits
+    time_step, position_gain, velocity_limit_fraction : float
+        The controller's (defaults: the closed loop's).
+    """
+
+    def __init__(self, scene, *, X_WB: RigidTransform | None = None, table_geometry_ids: Sequence = (),
+                 limits: JointPathLimits = JointPathLimits(),
+                 time_step: float = DEFAULT_TIME_STEP_S, position_gain: float = DEFAULT_POSITION_GAIN,
+                 velocity_limit_fraction: float = DEFAULT_VELOCITY_LIMIT_FRACTION):
+        self.scene = scene
+        self.X_WB = RigidTransform() if X_WB is None else RigidTransform(X_WB)
+        self.limits = limits
+        self._start_cache: dict[bytes, list[np.ndarray]] = {}
+        self._path_cache: dict[bytes, tuple] = {}
+        plant = scene.plant
+        self.law = DifferentialIKLaw(
+            plant=plant, model=scene.model, frame_E=plant.GetFrameByName(END_EFFECTOR_FRAME_NAME),
+            time_step=time_step, position_gain=position_gain, velocity_limit_fraction=velocity_limit_fraction)
+        self.time_step = self.law.time_step
+        geometry = scene.geometry
+        inspector = scene.scene_graph.model_inspector()
+        robot_ids = list(geometry.robot_geometry_ids)
+        boxes = list(geometry.keep_out_geometry_ids)
+        table_ids = [g for g in table_geometry_ids if g not in boxes]
+        pairs = [(r, b) for b in boxes for r in robot_ids]
+        for table in table_ids:
+            pairs += [(r, table) for r in robot_ids
+                      if geometry.names.get(r, "").split("/")[0] not in _ON_TABLE_LINKS]
+        self._pairs = pairs
+        bounds = {r: motion_bounds(plant, inspector, r) for r in robot_ids}
+        # (pairs, joints) motion bounds; a pair without one is always measured.
+        self._pair_bounds = np.array([np.where(np.isfinite(bounds[r]), bounds[r], 0.0) for r, _ in pairs]
+                                     ).reshape(len(pairs), len(self.law.position_lower))
+        self._pair_unbounded = np.array([not np.all(np.isfinite(bounds[r])) for r, _ in pairs], dtype=bool)
+        # Per joint, the largest bound over the pairs: the scalar bound of the fast path.
+        self._max_bounds = (self._pair_bounds.max(axis=0) if pairs else np.zeros(len(self.law.position_lower))).tolist()
+        self._any_unbounded = bool(self._pair_unbounded.any())
+        self._table_ids = set(table_ids)
+        self._scene_graph_context = scene.scene_graph.GetMyContextFromRoot(scene.context)
+        self._lower = self.law.position_lower
+        self._upper = self.law.position_upper
+
+    @classmethod
+    def for_workcell(cls, workcell, **kwargs) -> "JointPathChecker":
+        """A checker of ``workcell``'s scene (robot base, tool, table, obstacles and
+        shells); ``kwargs`` are the constructor's (``limits``, ``time_step``, ...)."""
+        scene = KinematicScene(workcell)
+        table = [] if scene.geometry.table_geometry_id is None else [scene.geometry.table_geometry_id]
+        return cls(scene, X_WB=workcell.X_WB, table_geometry_ids=table, **kwargs)
+
+    # -- one follow ----------------------------------------------------------------------
+    def follow(self, plan: TimedPlan, q_start: np.ndarray, *, resume: JointPath | None = None,
+               resume_index: int = 0) -> JointPath:
+        """Follows ``plan`` from ``q_start`` (6,); see the module docstring.
+
+        With ``resume``, a path of a plan identical up to sample ``resume_index``, that
+        prefix is kept and following starts from its sample there (the law is
+        deterministic, so the result equals a full follow).
+        """
+        limits, law, dt = self.limits, self.law, self.time_step
+        trajectory = plan.to_piecewise_pose()
+        velocity = trajectory.MakeDerivative()
+        duration = plan.duration
+        due = [float(plan.times[i]) for i in plan.critical_indices]
+        X_cons = [RigidTransform(T) for T in matrices_from_dual_quaternion(plan.poses[list(plan.critical_indices)])]
+        steps = int(math.ceil(duration / dt - 1e-9)) + limits.settle_steps
+        q = np.array(q_start, dtype=float)
+        times, path, clearances = [], [], []
+        critical_errors = []
+        next_con = 0
+        first = 0
+        if resume is not None and resume_index > 0:
+            first = resume_index
+            times, path = list(resume.t[:first]), list(resume.q[:first])
+            clearances = list(resume.clearances[:first])
+            q = resume.q[first].copy()
+            next_con = sum(1 for d in due if d < first * dt - 1e-9)
+            critical_errors = list(resume.critical_errors[:next_con])
+        wake = np.full(len(self._pairs), -np.inf)
+        travel = np.zeros(len(q))
+        q_previous = q.tolist()
+        slack = -math.inf
+        min_clearance, min_elbow, min_wrist, min_shoulder = math.inf, math.inf, math.inf, math.inf
+        if first:
+            prefix = np.array(path)
+            min_clearance = float(min(clearances, default=math.inf))
+            min_elbow = float(np.abs(np.sin(prefix[:, 2])).min())
+            min_wrist = float(np.abs(np.sin(prefix[:, 4])).min())
+            min_shoulder = min(abs(shoulder_singularity_distance(x)) for x in prefix)
+        blocker = None
+        span = 0
+        lower, upper = self._lower.tolist(), self._upper.tolist()
+        for k in range(first, steps + 1):
+            t = k * dt
+            times.append(t)
+            path.append(q.copy())
+            while span < len(due) - 2 and due[span + 1] <= t:
+                span += 1
+            # Singularities.
+            q_list = q.tolist()
+            elbow, wrist = abs(math.sin(q_list[2])), abs(math.sin(q_list[4]))
+            shoulder = abs(shoulder_singularity_distance(q_list))
+            min_elbow, min_wrist, min_shoulder = min(min_elbow, elbow), min(min_wrist, wrist), min(min_shoulder, shoulder)
+            if elbow < limits.elbow_margin:
+                blocker = Blocker("singularity", f"elbow straight (|sin q3| = {elbow:.3f} < {limits.elbow_margin:g})", t, span)
+            elif wrist < limits.wrist_margin:
+                blocker = Blocker("singularity", f"wrist aligned (|sin q5| = {wrist:.3f} < {limits.wrist_margin:g})", t, span)
+            elif shoulder < limits.shoulder_margin_m:
+                blocker = Blocker("singularity", f"wrist centre {1000 * shoulder:.0f} mm from the shoulder axis "
+                                  f"(< {1000 * limits.shoulder_margin_m:.0f} mm)", t, span)
+            if blocker is not None:
+                break
+            # Clearance. ``slack``: how much more any pair's geometry may move before a
+            # pair can come within the clearance (a scalar bound over all pairs, so most
+            # steps skip the per-pair bookkeeping).
+            step_travel = [abs(a - b) for a, b in zip(q_list, q_previous)]
+            q_previous = q_list
+            travel += step_travel
+            slack -= sum(r * d for r, d in zip(self._max_bounds, step_travel))
+            if slack <= 0.0 or self._any_unbounded:
+                clearance, pair, slack = self._clearance(q, travel, wake)
+            else:
+                clearance, pair = math.inf, None
+            clearances.append(clearance)
+            min_clearance = min(min_clearance, clearance)
+            if clearance < limits.clearance_m:
+                robot_id, box_id = pair
+                names = self.scene.geometry
+                what = "the table" if box_id in self._table_ids else names.describe(box_id)
+                verb = f"enters {what} by {-1000 * clearance:.1f} mm" if clearance < 0 else \
+                    f"passes {1000 * clearance:.1f} mm from {what} (clearance {1000 * limits.clearance_m:g} mm)"
+                blocker = Blocker("collision", f"collision with {what}: {names.names.get(robot_id, robot_id)} {verb}",
+                                  t, span)
+                break
+            # Tracking: along the path, and at each critical configuration when due.
+            tau = min(t, duration)
+            X_desired = trajectory.GetPose(tau)
+            V_desired = velocity.value(tau)[:, 0] if t < duration else np.zeros(6)
+            # The step's law evaluates E's pose error at q: the tracking error.
+            v = law.joint_velocity(q, q, X_desired, V_desired)
+            e = law.last_pose_error.tolist()
+            position = math.sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5])
+            rotation = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+            while next_con < len(due) and due[next_con] <= t + 1e-9:
+                con_error = pose_error(X_cons[next_con], law.X_WE(q))
+                c_position, c_rotation = float(np.linalg.norm(con_error[3:])), float(np.linalg.norm(con_error[:3]))
+                critical_errors.append((c_position, c_rotation))
+                if c_position > limits.position_tolerance_m or c_rotation > limits.rotation_tolerance_rad:
+                    blocker = self._tracking_blocker(
+                        f"misses con_{next_con + 1} by {1000 * c_position:.1f} mm, {math.degrees(c_rotation):.1f} deg",
+                        t, max(next_con - 1, 0), next_con + 1)
+                    break
+                next_con += 1
+            if blocker is not None:
+                break
+            if position > limits.path_position_tolerance_m or rotation > limits.path_rotation_tolerance_rad:
+                blocker = self._tracking_blocker(
+                    f"falls {1000 * position:.0f} mm, {math.degrees(rotation):.1f} deg behind the plan", t, span)
+                break
+            if k == steps:
+                break
+            # One controller step (measured = commanded: kinematic).
+            q = q + dt * v
+            outside = [j for j, (x, a, b) in enumerate(zip(q.tolist(), lower, upper)) if x < a - 1e-9 or x > b + 1e-9]
+            if outside:
+                blocker = Blocker("joint_limit", f"{UR5E_JOINT_NAMES[outside[0]]} reaches its limit", t, span)
+                break
+        clearances += [math.inf] * (len(times) - len(clearances))  # a sample stopped before its check
+        return JointPath(np.array(times), np.array(path), blocker, tuple(critical_errors),
+                         min_clearance, min_elbow, min_wrist, min_shoulder, clearances=np.array(clearances))
+
+    def _tracking_blocker(self, what: str, t: float, span: int, con: int | None = None) -> Blocker:
+        """Why E fell behind: the limit that slowed the law's last step."""
+        alpha, joint, kind = self.law.last_scale
+        if kind == "position" and joint >= 0:
+            return Blocker("joint_limit", f"E {what}: {UR5E_JOINT_NAMES[joint]} at its limit", t, span, con)
+        if kind in ("speed", "qp"):
+            name = UR5E_JOINT_NAMES[joint] if joint >= 0 else "a joint"
+            return Blocker("singularity", f"E {what}: {name} would need more than its speed limit "
+                           f"(singular Jacobian nearby)", t, span, con)
+        return Blocker("reach", f"E {what}", t, span, con)
+
+    def _clearance(self, q, travel, wake) -> tuple[float, tuple | None, float]:
+        """Least signed distance over the pairs not proven far, its pair, and the slack:
+        how far (in the units of the motion bounds) the joints may still travel before
+        any pair must be measured again. Updates the pairs' wake-up travels in place
+        (see ``motion_bounds``)."""
+        if not self._pairs:
+            return math.inf, None, math.inf
+        moved = self._pair_bounds @ travel
+        due = np.flatnonzero((moved >= wake) | self._pair_unbounded)
+        if not len(due):
+            return math.inf, None, float(np.min(wake - moved))
+        scene = self.scene
+        scene.plant.SetPositions(scene.plant_context, scene.model, q)
+        query_object = scene.scene_graph.get_query_output_port().Eval(self._scene_graph_context)
+        signed_distance = query_object.ComputeSignedDistancePairClosestPoints
+        best, best_pair = math.inf, None
+        threshold = self.limits.clearance_m
+        for k in due.tolist():
+            pair = self._pairs[k]
+            distance = signed_distance(*pair).distance
+            # Stays beyond the clearance until its geometry has moved distance - clearance.
+            wake[k] = moved[k] + distance - threshold
+            if distance < best:
+                best, best_pair = distance, pair
+        return best, best_pair, float(np.min(wake - moved))
+
+    # -- candidates ----------------------------------------------------------------------
+    def start_candidates(self, X_WE: RigidTransform) -> list[np.ndarray]:
+        """The inverse-kinematics branches reaching ``X_WE``, best first (the closed
+        loop's initial configuration is the first; cached per pose). Empty when none."""
+        key = np.ascontiguousarray(X_WE.GetAsMatrix34()).tobytes()
+        if key not in self._start_cache:
+            try:
+                found = initial_configuration_candidates(X_WE, X_WB=self.X_WB, scene=self.scene)
+            except UnreachableConfigurationError:
+                found = []
+            self._start_cache[key] = [c.q for c in found if c.collision_free]
+        return self._start_cache[key]
+
+    def follow_from_candidates(self, plan: TimedPlan, starts: Sequence[np.ndarray],
+                               span_keys: Sequence | None = None, *, max_starts: int = 3) -> JointPath:
+        """The first executable path over the first ``max_starts`` start candidates and
+        their windings, else the path of the first candidate (its blocker says why).
+
+        ``span_keys`` (one hashable per span, equal for spans that are the same motion)
+        lets a later call reuse the joint path of the spans its plan shares, from the
+        start, with the previous call's (lazy search re-checks only what changed).
+        """
+        first = None
+        for index, q_start in enumerate(starts[:max_starts]):
+            tried = []
+            q0 = np.array(q_start, dtype=float)
+            for _ in range(3):
+                tried.append(q0)
+                path = dataclasses.replace(self._follow_reusing(plan, q0, span_keys), start_index=index)
+                if first is None:
+                    first = path
+                if path.executable:
+                    return path
+                q_next = self._rewound(path, q0)
+                if q_next is None or any(np.allclose(q_next, t) for t in tried):
+                    break
+                q0 = q_next
+        return first
+
+    def _follow_reusing(self, plan: TimedPlan, q0: np.ndarray, span_keys) -> JointPath:
+        key = np.ascontiguousarray(q0).tobytes()
+        resume, resume_index = None, 0
+        previous = self._path_cache.get(key) if span_keys is not None else None
+        if previous is not None:
+            old_keys, old_path, old_due = previous
+            same = 0
+            while same < min(len(old_keys), len(span_keys)) and old_keys[same] == span_keys[same]:
+                same += 1
+            if same:
+                # Resume at the first sample of span ``same`` (the arm is at rest at the
+                # critical configuration that starts it), if the old path got there.
+                due = float(plan.times[plan.critical_indices[same]])
+                if abs(due - old_due[same]) < 1e-12:
+                    index = int(math.ceil(due / self.time_step - 1e-9))
+                    if index < len(old_path.t) - 1:
+                        resume, resume_index = old_path, index
+        path = self.follow(plan, q0, resume=resume, resume_index=resume_index)
+        if span_keys is not None:
+            due_all = [float(plan.times[i]) for i in plan.critical_indices]
+            self._path_cache[key] = (tuple(span_keys), path, due_all)
+        return path
+
+    def _rewound(self, path: JointPath, q0: np.ndarray) -> np.ndarray | None:
+        """The start turned by 2 pi on a joint whose limit blocked the path, away from
+        that limit, when that stays inside the limits; else None."""
+        blocker = path.blocker
+        if blocker is None or blocker.reason != "joint_limit":
+            return None
+        q_end = path.q[-1]
+        margin_low, margin_high = q_end - self._lower, self._upper - q_end
+        j = int(np.argmin(np.minimum(margin_low, margin_high)))
+        turn = -2 * math.pi if margin_high[j] < margin_low[j] else 2 * math.pi
+        q_new = np.array(q0, dtype=float)
+        q_new[j] += turn
+        if q_new[j] < self._lower[j] or q_new[j] > self._upper[j]:
+            return None
+        return q_new

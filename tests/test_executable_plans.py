@@ -1,0 +1,117 @@
+"""Plans that execute: with the joint-space checker, both planners return only
+compositions whose joint path (the controller's law, followed kinematically) keeps the
+UR5e's limits, singularity margins and clearances; otherwise ``no_executable_plan`` with
+the blocking segments and their causes."""
+
+import dataclasses
+import time
+
+import numpy as np
+import pytest
+
+from drake_lfd.core.resources import scenarios_directory
+from drake_lfd.core.tasks import ConcreteCriticalConfiguration, draw_trial
+from drake_lfd.io.library import Library, library_features
+from drake_lfd.io.task_files import load_task
+from drake_lfd.planning.planner import plan_task
+from drake_lfd.robot.joint_path import JointPathChecker
+from drake_lfd.robot.scene import KinematicScene, table_under_robot
+
+
+@pytest.fixture(scope="module")
+def transferring():
+    return load_task(scenarios_directory() / "transferring.yaml")
+
+
+@pytest.fixture(scope="module")
+def paper5():
+    return library_features(Library.open("paper5"))
+
+
+@pytest.fixture(scope="module")
+def checker(transferring):
+    task = transferring
+    table = table_under_robot(task.X_WB)
+    scene = KinematicScene(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, obstacles=task.obstacles,
+                           safety_shells=task.safety_shells, table=table, tool=task.tool)
+    return JointPathChecker(scene, X_WB=task.X_WB, table_geometry_ids=[scene.geometry.table_geometry_id])
+
+
+def _floor(task):
+    table = table_under_robot(task.X_WB)
+    return float(table.centre[2] + table.size[2] / 2)
+
+
+@pytest.mark.parametrize("seed", [2, 4])
+def test_a_blocked_composition_is_replaced_by_an_executable_one(transferring, paper5, checker, seed):
+    """These trials' cheapest compositions straighten the elbow (|sin q3| < 0.06): the
+    search forbids the blocked action and returns another composition, whose joint path
+    keeps every margin."""
+    concrete = draw_trial(transferring, seed)
+    unchecked = plan_task(concrete, paper5, floor_z=_floor(transferring))
+    checked = plan_task(concrete, paper5, floor_z=_floor(transferring), checker=checker)
+    assert checked.planned and checked.joint_path is not None and checked.joint_path.executable
+    assert checked.search_rounds >= 2
+    assert checked.infeasible and all(s.reason == "singularity" for s in checked.infeasible[:1])
+    assert "elbow straight" in checked.infeasible[0].detail
+    assert [s.demo for s in checked.composition] != [s.demo for s in unchecked.composition] or \
+        [(s.con_from, s.con_to) for s in checked.composition] != [(s.con_from, s.con_to) for s in unchecked.composition]
+    path = checked.joint_path
+    assert path.min_elbow >= checker.limits.elbow_margin and path.min_wrist >= checker.limits.wrist_margin
+    assert path.min_clearance_m >= checker.limits.clearance_m
+    # The joint path reaches every critical configuration within the success tolerances.
+    assert len(path.critical_errors) == len(concrete.critical_configurations)
+    assert max(e[0] for e in path.critical_errors) < 0.005
+
+
+def test_an_executable_plan_is_found_in_one_round_when_the_best_runs(transferring, paper5, checker):
+    concrete = draw_trial(transferring, 0)
+    unchecked = plan_task(concrete, paper5, floor_z=_floor(transferring))
+    checked = plan_task(concrete, paper5, floor_z=_floor(transferring), checker=checker)
+    assert checked.search_rounds == 1 and not checked.infeasible
+    assert [s.demo for s in checked.composition] == [s.demo for s in unchecked.composition]
+    np.testing.assert_array_equal(checked.timed.poses, unchecked.timed.poses)
+
+
+@pytest.mark.parametrize("distance", [5.0, 1e20])
+def test_a_configuration_out_of_reach_is_refused_fast_naming_it(transferring, paper5, checker, distance):
+    concrete = draw_trial(transferring, 0)
+    cons = list(concrete.critical_configurations)
+    cons[2] = ConcreteCriticalConfiguration.fixed([distance, 0.2, 0.3], [0.0, -np.pi / 2, 0.0])
+    far = dataclasses.replace(concrete, critical_configurations=tuple(cons))
+    start = time.perf_counter()
+    result = plan_task(far, paper5, floor_z=_floor(transferring), checker=checker)
+    assert time.perf_counter() - start < 2.0
+    assert result.status == "no_executable_plan" and result.timed is None
+    (segment,) = result.infeasible
+    assert segment.reason == "reach" and segment.con_to == 3 and "con_3" in segment.detail
+
+
+@pytest.mark.slow
+def test_the_planned_joint_path_is_the_path_the_closed_loop_runs(transferring, paper5):
+    """``plan --json``'s joint trajectory and a simulated trial of the same seed: the
+    simulated joints follow the planned ones (the servos' lag aside) and E stays within
+    the tracking tolerance (1 cm; measured 6.2 mm at worst, where the tool turns a corner
+    between spans, and a median of 0.03 mrad per joint) of where the planned joints put it."""
+    from drake_lfd.experiments.simulation import TrialRunner
+    from drake_lfd.io.plan_json import plan_json
+    from drake_lfd.robot.kinematics import UR5eKinematics
+
+    runner = TrialRunner(transferring, paper5)
+    outcome = runner.run(trial=1, seed=0)
+    assert outcome.success, outcome.failures
+    document = plan_json(outcome.plan)
+    t_plan = np.array(document["joint_trajectory"]["t"])
+    q_plan = np.array(document["joint_trajectory"]["q"])
+    run = outcome.run
+    np.testing.assert_allclose(q_plan[0], run.q[0], atol=1e-9)  # the run starts where the plan does
+    tau = run.t - run.plan_start_time_s
+    inside = (tau >= 0.0) & (tau <= t_plan[-1])
+    planned = np.array([np.interp(tau[inside], t_plan, q_plan[:, j]) for j in range(6)]).T
+    difference = np.abs(planned - run.q[inside])
+    assert np.median(difference) < 5e-4  # rad
+    assert difference.max() < 0.03  # rad: the servos lag most where the joints turn fastest
+    kinematics = UR5eKinematics(X_WB=transferring.X_WB, X_tool0_E=transferring.X_tool0_E)
+    gap = max(np.linalg.norm(kinematics.X_WE(a).translation() - kinematics.X_WE(b).translation())
+              for a, b in zip(planned[::5], run.q[inside][::5]))
+    assert gap < 0.01
