@@ -115,3 +115,70 @@ def test_the_planned_joint_path_is_the_path_the_closed_loop_runs(transferring, p
     gap = max(np.linalg.norm(kinematics.X_WE(a).translation() - kinematics.X_WE(b).translation())
               for a, b in zip(planned[::5], run.q[inside][::5]))
     assert gap < 0.01
+
+
+@pytest.mark.slow
+def test_a_request_comes_with_a_guidance_script_that_records_the_missing_demonstration(tmp_path):
+    """assembling with paper5: exit 3 and a guidance script; recording it and adding the
+    recording to a copy of the library makes the task plan, with the new demonstration
+    on the requested segment."""
+    import json
+
+    import drake_lfd.cli as cli
+    from drake_lfd.io.guidance_scripts import load_guidance_script
+
+    task = str(scenarios_directory() / "assembling.yaml")
+    script = tmp_path / "request.yaml"
+    assert cli.main(["plan", task, "--library", "paper5", "--request-script", str(script),
+                     "--json", str(tmp_path / "request.json")]) == 3
+    guidance = load_guidance_script(script)
+    (uncovered,) = json.loads((tmp_path / "request.json").read_text())["uncovered"]
+    assert (uncovered["from"], uncovered["to"]) == (2, 3)
+    assert uncovered["guidance_script"] == script.read_text()
+    assert len(guidance.waypoints) >= 2
+    assert cli.main(["record", str(script), "--out", str(tmp_path / "new.csv"), "--quiet"]) == 0
+    assert cli.main(["library", "copy", "paper5", str(tmp_path / "lib")]) == 0
+    assert cli.main(["library", "add", str(tmp_path / "lib"), str(tmp_path / "new.csv"), "--name", "new"]) == 0
+    assert cli.main(["plan", task, "--library", str(tmp_path / "lib"), "--json", str(tmp_path / "plan.json")]) == 0
+    plan = json.loads((tmp_path / "plan.json").read_text())
+    assert {"demo": "new", "from": 2, "to": 3} in [{k: c[k] for k in ("demo", "from", "to")} for c in plan["composition"]]
+
+
+@pytest.mark.slow
+def test_a_task_needing_the_wrist_3_winding_of_the_whole_plan_succeeds_in_closed_loop():
+    """Four 'span' demonstrations chained: the tool turns a full -2 pi about its axis.
+    Inverse kinematics of con_1 alone gives wrist 3 at -1.01 rad, from which the twist
+    would end at -7.3 rad, past the -2 pi limit; the plan starts one turn higher (5.27
+    rad), and the closed loop, started there, succeeds."""
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    from drake_lfd.core.dual_quaternion import (
+        dual_quaternion_from_euler_zyx,
+        dual_quaternion_multiply,
+        dual_quaternion_relative,
+        matrices_from_dual_quaternion,
+    )
+    from drake_lfd.core.tasks import ConcreteTask
+    from drake_lfd.diagrams.closed_loop import ClosedLoopRunner
+    from drake_lfd.diagrams.pipeline import build_pipeline
+    from drake_lfd.experiments.judging import judge_run
+
+    features = library_features(Library.open("paper6"))
+    step = dual_quaternion_relative(features["span"].poses[0], features["span"].poses[-1])
+    poses = [dual_quaternion_from_euler_zyx(np.array([0.4, 0.1, 0.3]), np.array([2.5, -np.pi / 2, 0.0]))]
+    for _ in range(4):
+        poses.append(dual_quaternion_multiply(poses[-1], step))
+    X = [RigidTransform(T) for T in matrices_from_dual_quaternion(np.array(poses))]
+    euler = [[r.yaw_angle(), r.pitch_angle(), r.roll_angle()] for r in (RollPitchYaw(x.rotation()) for x in X)]
+    task = ConcreteTask.from_fixed("winding", np.array([x.translation() for x in X]), np.array(euler),
+                                   X_tool0_E=RigidTransform(RollPitchYaw(0, np.pi / 2, 0), [0, 0, 0.2]))
+    runner = ClosedLoopRunner(build_pipeline(task, features))
+    scheduled, run = runner.run(task)
+    path = scheduled.result.joint_path
+    assert scheduled.planned and path is not None
+    assert path.q[0][5] == pytest.approx(-1.0134 + 2 * np.pi, abs=1e-3)
+    assert path.q[-1][5] == pytest.approx(-1.0147, abs=1e-2)
+    np.testing.assert_allclose(run.q[0], path.q[0], atol=1e-9)
+    judgement = judge_run(run)
+    assert judgement.success, judgement.failures
+    assert run.q[:, 5].min() > -2 * np.pi and run.q[:, 5].max() < 2 * np.pi

@@ -46,6 +46,10 @@ def add_parser(subparsers) -> None:
     add_planning_arguments(parser)
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="draws the trial's ranged positions; seeds the Q-planner's refinement")
+    parser.add_argument("--request-script", metavar="SCRIPT.yaml",
+                        help="when a demonstration is requested, write a guidance script for "
+                             "drake-lfd record showing the missing motion (one file per missing segment: "
+                             "SCRIPT_con_J_con_K.yaml when there are several) (default: not written)")
     parser.add_argument("--json", metavar="OUT",
                         help="write the plan or the request as JSON (missing folders are created)")
     parser.set_defaults(func=run)
@@ -87,6 +91,7 @@ def run(args) -> int:
 
     require_seed(args.seed)
     prepare_output(args.json, "--json")
+    prepare_output(args.request_script, "--request-script")
     task = load_task(args.task)
     library = Library.open(args.library)
     check_end_effector_frame(library, task.X_tool0_E, file=args.task)
@@ -117,4 +122,16 @@ def run(args) -> int:
     print(f"{task.name}: library {library.label} cannot cover the task; please demonstrate:")
     for line in describe_uncovered(result):
         print("  " + line)
+    if args.request_script:
+        from drake_lfd.io.atomic_files import atomic_write_bytes
+        from drake_lfd.io.guidance_scripts import request_guidance_yaml
+
+        for u in result.uncovered:
+            path = Path(args.request_script)
+            if len(result.uncovered) > 1:
+                path = path.with_name(f"{path.stem}_con_{u.con_from}_con_{u.con_to}{path.suffix or '.yaml'}")
+            atomic_write_bytes(path, request_guidance_yaml(trial, u).encode())
+            print(f"  guidance script for drake-lfd record (edit it to show how): {path}")
+    else:
+        print("  (--request-script SCRIPT.yaml writes a guidance script of it for drake-lfd record)")
     return EXIT_DEMONSTRATION_REQUESTED

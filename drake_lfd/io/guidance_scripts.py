@@ -55,6 +55,7 @@ from drake_lfd.core.guidance import (
 from drake_lfd.io.yaml_checks import PoseSpec, Scalar, finite, load_spec, pose, read_text, required, vector
 
 __all__ = [
+    "request_guidance_yaml",
     "MIN_HOLD_S",
     "MAX_WAYPOINT_TURN_RAD",
     "WaypointSpec",
@@ -219,6 +220,59 @@ def guidance_script_from_spec(spec: GuidanceScriptSpec, *, file=None) -> Guidanc
 def guidance_script_from_text(text, *, file=None) -> GuidanceScript:
     """Parses and checks a guidance script given as YAML text; ``file`` names it in errors."""
     return guidance_script_from_spec(guidance_script_spec_from_text(text, file=file), file=file)
+
+
+def request_guidance_yaml(task, segment, *, duration_s: float = 3.0) -> str:
+    """A guidance script (YAML text, ready to edit) of the motion a demonstration request
+    asks for: E from ``segment``'s con_from pose to its con_to pose in the task's frames,
+    split into steps under :data:`MAX_WAYPOINT_TURN_RAD`, for ``drake-lfd record``.
+
+    ``segment`` is a :class:`~drake_lfd.planning.planner.UncoveredSegment` carrying its
+    poses; ``task`` the concrete task (name, base and tool frames).
+    """
+    import numpy as np
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    from drake_lfd.core.dual_quaternion import dual_quaternion_sclerp, matrices_from_dual_quaternion
+
+    def euler(X):
+        rpy = RollPitchYaw(X.rotation())
+        return [rpy.yaw_angle(), rpy.pitch_angle(), rpy.roll_angle()]
+
+    def pose_text(X):
+        p = ", ".join(f"{v:.6g}" for v in X.translation())
+        e = ", ".join(f"{v:.8g}" for v in euler(X))
+        return f"p: [{p}], euler_zyx: [{e}]"
+
+    D_from, D_to = np.asarray(segment.pose_from, dtype=float), np.asarray(segment.pose_to, dtype=float)
+    steps = max(1, int(math.ceil(abs(segment.angle_rad) / (0.9 * MAX_WAYPOINT_TURN_RAD))))
+    waypoints = []
+    for i in range(steps + 1):
+        D = dual_quaternion_sclerp(D_from, D_to, i / steps) if 0 < i < steps else (D_from if i == 0 else D_to)
+        X = RigidTransform(matrices_from_dual_quaternion(np.asarray(D)[None])[0])
+        waypoints.append(f"  - {{t: {duration_s * i / steps:.3g}, {pose_text(X)}}}")
+    name = f"{task.name}_con_{segment.con_from}_con_{segment.con_to}"
+    axis = ", ".join(f"{a:.2f}" for a in segment.axis)
+    move = ", ".join(f"{t:.3f}" for t in segment.translation_m)
+    lines = [
+        f"# The demonstration {task.name} asks for: E from con_{segment.con_from} to con_{segment.con_to},",
+        f"# turning {math.degrees(segment.angle_rad):.0f} deg about body axis [{axis}] while moving [{move}] m",
+        f"# (in con_{segment.con_from}'s frame). Edit the waypoints to show how a person does it",
+        "# (the path between the ends is what the library learns), then:",
+        f"#   drake-lfd record {name}.yaml --out {name}.csv",
+        f"#   drake-lfd library add LIB {name}.csv --name NAME",
+        f"name: {name}",
+        f"description: the motion {task.name} needs from con_{segment.con_from} to con_{segment.con_to}",
+        f"X_WB: {{{pose_text(task.X_WB)}}}",
+        f"X_tool0_E: {{{pose_text(task.X_tool0_E)}}}",
+        "waypoints:",
+        *waypoints,
+        "hold_s: 0.5",
+        "hand_noise: {position_m: 0.001, rotation_deg: 0.5, speed_variation: 0.05, frequency_hz: [0.2, 0.8]}",
+        "seed: 1",
+        "sample_rate_hz: 500",
+    ]
+    return "\n".join(lines) + "\n"
 
 
 def load_guidance_script(path) -> GuidanceScript:

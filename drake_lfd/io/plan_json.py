@@ -40,6 +40,10 @@ def composition_json(result: PlanResult) -> list[dict]:
 
 
 def uncovered_json(result: PlanResult) -> list[dict]:
+    """The segments to demonstrate, each with ``guidance_script``: a guidance script
+    (YAML text) for ``drake-lfd record`` showing the motion, ready to edit."""
+    from drake_lfd.io.guidance_scripts import request_guidance_yaml
+
     return [
         {
             "from": u.con_from,
@@ -47,6 +51,7 @@ def uncovered_json(result: PlanResult) -> list[dict]:
             "axis": _floats(u.axis),
             "angle_rad": float(u.angle_rad),
             "translation_m": _floats(u.translation_m),
+            **({"guidance_script": request_guidance_yaml(result.task, u)} if u.pose_from is not None else {}),
         }
         for u in result.uncovered
     ]

@@ -84,6 +84,8 @@ class UncoveredSegment:
     axis: np.ndarray  # (3,)
     angle_rad: float
     translation_m: np.ndarray  # (3,)
+    pose_from: np.ndarray | None = None  # (8,) X_WE of con_from (the candidate used)
+    pose_to: np.ndarray | None = None  # (8,) X_WE of con_to
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -165,7 +167,8 @@ def uncovered_segments(problem: CompositionProblem) -> list[UncoveredSegment]:
         relative = dual_quaternion_relative(D_from, D_to)
         axis, angle = axis_angle_from_quaternion(relative[:4])
         segments.append(
-            UncoveredSegment(g + 1, g + 2, axis, float(angle), translation_from_dual_quaternion(relative))
+            UncoveredSegment(g + 1, g + 2, axis, float(angle), translation_from_dual_quaternion(relative),
+                             np.array(D_from, dtype=float), np.array(D_to, dtype=float))
         )
     return segments
 
