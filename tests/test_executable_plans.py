@@ -43,25 +43,44 @@ def _floor(task):
 
 
 @pytest.mark.parametrize("seed", [2, 4])
-def test_a_blocked_composition_is_replaced_by_an_executable_one(transferring, paper5, checker, seed):
-    """These trials' cheapest compositions straighten the elbow (|sin q3| < 0.06): the
-    search forbids the blocked action and returns another composition, whose joint path
+def test_a_blocked_plan_is_replaced_by_an_executable_one(transferring, paper5, checker, seed):
+    """These trials' cheapest plans straighten the elbow (|sin q3| < 0.06): the search
+    maps the blocked span from another demonstration suffix or with another twist (or,
+    failing that, forbids it and takes another composition), and the plan it returns
     keeps every margin."""
     concrete = draw_trial(transferring, seed)
     unchecked = plan_task(concrete, paper5, floor_z=_floor(transferring))
+    starts = checker.start_candidates(unchecked.timed.X_WE_list()[0])
+    blocked = checker.follow_from_candidates(unchecked.timed, starts)
+    assert blocked.blocker is not None and blocked.blocker.reason == "singularity"
+    assert "elbow" in blocked.blocker.detail or "speed limit" in blocked.blocker.detail
     checked = plan_task(concrete, paper5, floor_z=_floor(transferring), checker=checker)
     assert checked.planned and checked.joint_path is not None and checked.joint_path.executable
-    assert checked.search_rounds >= 2
-    assert checked.infeasible and all(s.reason == "singularity" for s in checked.infeasible[:1])
-    assert "elbow straight" in checked.infeasible[0].detail
-    assert [s.demo for s in checked.composition] != [s.demo for s in unchecked.composition] or \
-        [(s.con_from, s.con_to) for s in checked.composition] != [(s.con_from, s.con_to) for s in unchecked.composition]
+    assert checked.timed.poses.shape != unchecked.timed.poses.shape or \
+        not np.allclose(checked.timed.poses, unchecked.timed.poses)
     path = checked.joint_path
     assert path.min_elbow >= checker.limits.elbow_margin and path.min_wrist >= checker.limits.wrist_margin
     assert path.min_clearance_m >= checker.limits.clearance_m
     # The joint path reaches every critical configuration within the success tolerances.
     assert len(path.critical_errors) == len(concrete.critical_configurations)
     assert max(e[0] for e in path.critical_errors) < 0.005
+
+
+def test_a_step_no_mapping_can_run_is_forbidden_and_reported(transferring, paper5, checker):
+    """Without alternative mappings (one suffix, one twist), trial 2's blocked span is
+    forbidden: the search takes another composition and reports the blocked segment."""
+    import drake_lfd.planning.planner as planner
+
+    concrete = draw_trial(transferring, 2)
+    saved = planner.SUFFIX_ALTERNATIVES, planner.TWIST_ALTERNATIVES
+    planner.SUFFIX_ALTERNATIVES, planner.TWIST_ALTERNATIVES = 1, 1
+    try:
+        checked = plan_task(concrete, paper5, floor_z=_floor(transferring), checker=checker)
+    finally:
+        planner.SUFFIX_ALTERNATIVES, planner.TWIST_ALTERNATIVES = saved
+    assert checked.planned and checked.joint_path.executable
+    assert checked.search_rounds >= 2 and checked.infeasible
+    assert checked.infeasible[0].reason == "singularity" and checked.infeasible[0].demo == "stacking"
 
 
 def test_an_executable_plan_is_found_in_one_round_when_the_best_runs(transferring, paper5, checker):

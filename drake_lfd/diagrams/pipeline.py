@@ -117,6 +117,10 @@ class Pipeline(Diagram):
     accept_demonstrations : bool
         Give the library system its ``demonstration`` input (exported as
         ``demonstration``).
+    joint_check : bool
+        Plan only executable compositions (the plan-time joint-space check,
+        :func:`joint_path_checker`); False plans in SE(3) alone, as the paper does (for
+        comparisons).
 
     Attributes
     ----------
@@ -144,6 +148,7 @@ class Pipeline(Diagram):
         config: PipelineConfig | None = None,
         meshcat: Meshcat | None = None,
         accept_demonstrations: bool = False,
+        joint_check: bool = True,
     ):
         super().__init__()
         config = (PipelineConfig() if config is None else config).checked()
@@ -169,7 +174,7 @@ class Pipeline(Diagram):
                 check_period=config.planner.check_period))
             self.planner = builder.AddNamedSystem("planner", PlannerSystem(
                 planner=planner, policy=policy, start_time_s=config.settle_s, floor_z=floor_z,
-                checker=joint_path_checker(workcell, config),
+                checker=joint_path_checker(workcell, config) if joint_check else None,
                 check_period=config.planner.check_period))
             plan_port = self.planner.plan_output_port
         else:

@@ -81,10 +81,12 @@ class TrialRunner:
     """
 
     def __init__(self, task: Task, features: Mapping[str, Feature], *, planner: str = "exact",
-                 policy: QPolicy | None = None, with_table: bool = True, config: PipelineConfig | None = None):
+                 policy: QPolicy | None = None, with_table: bool = True, config: PipelineConfig | None = None,
+                 joint_check: bool = True):
         check_problem_size(task, features)  # a problem too large is refused before the pipeline is built
         self.task = task
         self._options = dict(features=features, planner=planner, policy=policy, with_table=with_table,
+                             joint_check=joint_check,
                              config=config if config is not None else task.simulation)
         self._runner = ClosedLoopRunner(build_pipeline(task, **self._options))
         self._recording_runner = None

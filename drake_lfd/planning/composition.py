@@ -199,13 +199,9 @@ class CompositionProblem:
             covered[j:k] = True
         return covered
 
-    def span_allocation(self, step: Step) -> SpanAllocation:
-        """Intermediate candidates and the exact allocation for one legal ``step``.
-
-        The same kernel and dynamic programme as the legal-action table, for one
-        ``(a_j, a_k)``: each intermediate row is reduced over its con's candidates
-        (keeping which candidate won), then the allocation is backtracked.
-        """
+    def span_rows(self, step: Step) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """The allocation's pair-cost rows of ``step`` (each intermediate con reduced
+        over its candidates) and, per row, which candidate won each demo sample."""
         feature = self.demo_features[step.demo]
         D_k = self.candidate_poses[step.k][step.a_k]
         rows, winners = [], []
@@ -216,6 +212,37 @@ class CompositionProblem:
                               feature.translations, self.tolerances)  # (options, n_d)
             rows.append(cost.min(axis=0))
             winners.append(options[np.argmin(cost, axis=0)])  # ties: the first candidate
+        return rows, winners
+
+    def suffix_candidates(self, step: Step, limit: int) -> list[int]:
+        """Up to ``limit`` demo samples the span may start from (which suffix of the
+        demonstration covers it), best first: by the least total alpha of an allocation
+        starting there (rounded to 1e-9, so noise cannot order equal ones), then by
+        sample. The first is the allocation :meth:`span_allocation` picks."""
+        rows, _ = self.span_rows(step)
+        totals = []
+        for first in np.flatnonzero(np.isfinite(rows[0])).tolist():
+            masked = [np.where(np.arange(len(rows[0])) == first, rows[0], np.inf)] + rows[1:]
+            total = float(allocation_table(np.array(masked))[-1].min())
+            if np.isfinite(total):
+                totals.append((round(total, 9), first))
+        totals.sort()
+        return [first for _, first in totals[:limit]]
+
+    def span_allocation(self, step: Step, first_index: int | None = None) -> SpanAllocation:
+        """Intermediate candidates and the exact allocation for one legal ``step``.
+
+        The same kernel and dynamic programme as the legal-action table, for one
+        ``(a_j, a_k)``: each intermediate row is reduced over its con's candidates
+        (keeping which candidate won), then the allocation is backtracked. With
+        ``first_index``, the allocation starts at that demo sample (another suffix of
+        the demonstration, :meth:`suffix_candidates`).
+        """
+        feature = self.demo_features[step.demo]
+        D_k = self.candidate_poses[step.k][step.a_k]
+        rows, winners = self.span_rows(step)
+        if first_index is not None:
+            rows = [np.where(np.arange(len(rows[0])) == first_index, rows[0], np.inf)] + rows[1:]
         indices = allocation_backtrack(allocation_table(np.array(rows)))
         if indices is None:
             raise ValueError(f"step {step} is not a legal action")

@@ -68,49 +68,64 @@ class ExecutableSearch:
     rounds: int
 
 
-def _span_keys(steps: list[Step]) -> list:
-    """One key per span (con to con): the step covering it and the span's place in it;
-    equal keys mean the same mapped motion."""
+def _span_keys(steps: list[Step], overrides: dict) -> list:
+    """One key per span (con to con): the step covering it, its mapping override and the
+    span's place in it; equal keys mean the same mapped motion."""
     keys = []
     for step in steps:
         for offset in range(step.k - step.j):
-            keys.append((step.demo, step.j, step.k, step.a_j, step.a_k, offset))
+            keys.append((step.demo, step.j, step.k, step.a_j, step.a_k, overrides.get(step), offset))
     return keys
 
 
-def _blocking_step(steps: list[Step], blocker: Blocker) -> Step:
-    """The step whose span holds the blocker (its span index is 0-based, con to con)."""
-    span = blocker.span
-    for step in steps:
-        if step.j <= span < step.k:
-            return step
-    return steps[-1]
+def _blocking_index(steps: list[Step], blocker: Blocker) -> int:
+    """Index of the step whose span holds the blocker (its span index is 0-based, con
+    to con)."""
+    for index, step in enumerate(steps):
+        if step.j <= blocker.span < step.k:
+            return index
+    return len(steps) - 1
 
 
 def search_executable(
     problem: CompositionProblem,
     solve: Callable[[CompositionProblem], list[Step] | None],
-    compose: Callable[[list[Step]], tuple],
+    compose: Callable[..., tuple],
     checker: JointPathChecker,
     demo_names: list[str],
     *,
+    alternatives: Callable[[Step], list] | None = None,
     max_rounds: int = MAX_SEARCH_ROUNDS,
 ) -> ExecutableSearch:
     """Lazy search for an executable composition (see the module docstring).
 
-    ``solve(problem)`` returns the planner's composition or None; ``compose(steps)``
-    returns a tuple whose first item is the :class:`~drake_lfd.core.timing.TimedPlan`.
+    ``solve(problem)`` returns the planner's composition or None; ``compose(steps,
+    overrides)`` returns a tuple whose first item is the
+    :class:`~drake_lfd.core.timing.TimedPlan`, ``overrides`` mapping a step's index to
+    its ``(first_index, twist)``; ``alternatives(step)`` lists the other mappings of a
+    step (demo suffix and twist) to try, best first, before the step is forbidden.
     ``problem`` is modified (forbidden actions).
     """
     blocked: list[InfeasibleSegment] = []
-    for rounds in range(1, max_rounds + 1):
+    overrides: dict[Step, tuple] = {}  # mappings adopted for steps, by step
+    tried: set[Step] = set()  # steps whose alternatives were tried
+    rounds = 0
+    while rounds < max_rounds:
+        rounds += 1
         steps = solve(problem)
         if steps is None:
             return ExecutableSearch(None, None, None, tuple(blocked), rounds - 1)
-        composed = compose(steps)
-        timed = composed[0]
-        starts = checker.start_candidates(timed.X_WE_list()[0])
-        if not starts:
+
+        def check(current: dict):
+            composed = compose(steps, {i: current[s] for i, s in enumerate(steps) if s in current})
+            timed = composed[0]
+            starts = checker.start_candidates(timed.X_WE_list()[0])
+            if not starts:
+                return composed, None
+            return composed, checker.follow_from_candidates(timed, starts, _span_keys(steps, current))
+
+        composed, path = check(overrides)
+        if path is None:
             # con_1 at this candidate has no collision-free joint configuration: no
             # action from it can run.
             step = steps[0]
@@ -119,11 +134,27 @@ def search_executable(
                                              demo_names[step.demo]))
             problem.forbid_state(step.j, step.a_j)
             continue
-        path = checker.follow_from_candidates(timed, starts, _span_keys(steps))
         if path.executable:
             return ExecutableSearch(steps, composed, path, tuple(blocked), rounds)
-        step = _blocking_step(steps, path.blocker)
-        blocked.append(InfeasibleSegment(step.j + 1, step.k + 1, path.blocker.reason, path.blocker.detail,
+        index = _blocking_index(steps, path.blocker)
+        step = steps[index]
+        first_blocker = path.blocker
+        passed = False
+        if alternatives is not None and step not in tried:
+            tried.add(step)
+            for option in alternatives(step):
+                trial = dict(overrides)
+                trial[step] = option
+                composed, path = check(trial)
+                if path is not None and (path.executable or _blocking_index(steps, path.blocker) > index):
+                    overrides = trial  # this mapping gets the arm past the step
+                    passed = True
+                    break
+        if passed:
+            if path.executable:
+                return ExecutableSearch(steps, composed, path, tuple(blocked), rounds)
+            continue  # the next blocker is in a later step
+        blocked.append(InfeasibleSegment(step.j + 1, step.k + 1, first_blocker.reason, first_blocker.detail,
                                          demo_names[step.demo]))
         problem.forbid(step)
     return ExecutableSearch(None, None, None, tuple(blocked), max_rounds)

@@ -57,6 +57,7 @@ __all__ = [
     'CLEARANCE_GOAL_M',
     'box_signed_distance',
     'path_clearance',
+    'twist_order',
     'map_span_clear',
     'compose_plan',
     'out_of_reach',
@@ -201,6 +202,10 @@ def tool_clearance_points(X_tool0_E) -> np.ndarray:
 
 
 TWIST_CANDIDATES_RAD = np.radians(np.arange(0.0, 360.0, 30.0))
+# The executable-plan search tries, for a blocked step, this many demo suffixes times
+# this many twists (best first) before it forbids the step.
+SUFFIX_ALTERNATIVES = 2
+TWIST_ALTERNATIVES = 3
 # A mapped path this far from every keep-out box is clear; among clear twists the one
 # closest to the paper's shortest alignment (twist 0) is kept.
 CLEARANCE_GOAL_M = 0.05 + LINK_RADIUS_M
@@ -250,33 +255,42 @@ def path_clearance(poses: np.ndarray, keep_out=(), floor_z: float | None = None,
     return float(np.min(_clearances(poses, keep_out, floor_z, points_E), initial=np.inf))
 
 
-def map_span_clear(feature_poses, allocation, task_poses, keep_out=(), floor_z=None, points_E=None):
-    """Maps a demo onto a span, choosing the free twist about the task's first translation
-    (docs/method.rst, Mapping) that keeps the tool path clear of the keep-out boxes and the floor.
-
-    Each twist (30 deg steps) is scored by the path's total shortfall below
-    ``CLEARANCE_GOAL_M`` (summed over samples and tracked points, so a critical
-    configuration that itself touches a shell does not hide the rest of the path); the
-    least shortfall wins, then the smallest turn. Twist 0, the paper's shortest
-    alignment, is kept when its path is clear. Returns the MappedSegment and the twist.
+def twist_order(feature_poses, allocation, task_poses, keep_out=(), floor_z=None, points_E=None,
+                limit: int | None = None) -> list[float]:
+    """The free twists of a span (30 deg steps about the task's first translation,
+    docs/method.rst, Mapping), best first: by the mapped path's total shortfall below
+    ``CLEARANCE_GOAL_M`` from the keep-out boxes and the floor (summed over samples and
+    tracked points, so a critical configuration that itself touches a shell does not
+    hide the rest of the path), rounded to a micrometre so floating-point noise (a rigid
+    motion of the whole task) cannot decide between equally clear twists; then the
+    smaller turn, then the positive one. Twist 0, the paper's shortest alignment, comes
+    first when its path is clear (the others are then not scored unless ``limit`` asks
+    for more than one). Without boxes or floor: ``[0.0]``.
     """
     if not keep_out and floor_z is None:
-        return map_segment(feature_poses, allocation, task_poses), 0.0
-    best = None
-    for twist in TWIST_CANDIDATES_RAD:
+        return [0.0]
+    scored = []
+    for order, twist in enumerate(TWIST_CANDIDATES_RAD):
         mapped = map_segment(feature_poses, allocation, task_poses, twist_rad=float(twist))
         distance = _clearances(mapped.poses, keep_out, floor_z, points_E)
-        # Rounded to a micrometre, so floating-point noise (a rigid motion of the whole
-        # task) cannot decide between twists that are equally clear; ties go to the
-        # smaller turn, then to the positive one (the loop's order).
         shortfall = round(float(np.sum(np.maximum(CLEARANCE_GOAL_M - distance, 0.0))), 6)
         turn = round(float(min(twist, 2 * np.pi - twist)), 9)
-        score = (-shortfall, -turn)
-        if best is None or score > best[0]:
-            best = (score, mapped, float(twist))
-        if twist == 0.0 and shortfall == 0.0:
+        scored.append((shortfall, turn, order, float(twist)))
+        if twist == 0.0 and shortfall == 0.0 and (limit is None or limit <= 1):
             break
-    return best[1], best[2]
+    scored.sort()
+    twists = [twist for *_, twist in scored]
+    return twists if limit is None else twists[:limit]
+
+
+def map_span_clear(feature_poses, allocation, task_poses, keep_out=(), floor_z=None, points_E=None,
+                   twist: float | None = None):
+    """Maps a demo onto a span with the best free twist of :func:`twist_order` (or the
+    given ``twist``), keeping the tool path clear of the keep-out boxes and the floor.
+    Returns the MappedSegment and the twist."""
+    if twist is None:
+        twist = twist_order(feature_poses, allocation, task_poses, keep_out, floor_z, points_E, limit=1)[0]
+    return map_segment(feature_poses, allocation, task_poses, twist_rad=float(twist)), float(twist)
 
 
 def compose_plan(
@@ -287,8 +301,13 @@ def compose_plan(
     keep_out=(),
     floor_z: float | None = None,
     points_E: np.ndarray | None = None,
+    overrides: Mapping[int, tuple[int | None, float | None]] | None = None,
 ) -> tuple[np.ndarray, list[int], np.ndarray, float, float]:
     """Maps each step's demo onto its span (see :func:`map_span_clear`) and joins them.
+
+    ``overrides[i] = (first_index, twist)`` maps step ``i`` from another demo suffix
+    (:meth:`CompositionProblem.suffix_candidates`) and/or with another twist (None: the
+    default choice), for the executable-plan search.
 
     Returns poses (N, 8), critical indices (n,), chosen euler_zyx (n, 3), the exact
     cost of each step (its allocation's total alpha), and the largest position and
@@ -300,8 +319,10 @@ def compose_plan(
     chosen[0] = angles[0][steps[0].a_j]
     pieces, critical, costs = [], [0], []
     max_position, max_rotation = 0.0, 0.0
-    for step in steps:
-        span = problem.span_allocation(step)
+    overrides = overrides or {}
+    for index, step in enumerate(steps):
+        first_index, twist = overrides.get(index, (None, None))
+        span = problem.span_allocation(step, first_index)
         costs.append(span.allocation.cost)
         for offset, candidate in enumerate(span.candidates):
             chosen[step.j + offset] = angles[step.j + offset][candidate]
@@ -309,7 +330,8 @@ def compose_plan(
             [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)]
         )
         feature = features[names[step.demo]]
-        mapped, _twist = map_span_clear(feature.poses, span.allocation, task_poses, keep_out, floor_z, points_E)
+        mapped, _twist = map_span_clear(feature.poses, span.allocation, task_poses, keep_out, floor_z, points_E,
+                                        twist=twist)
         start = sum(len(p) for p in pieces) - (1 if pieces else 0)
         pieces.append(mapped.poses if not pieces else mapped.poses[1:])
         anchors = np.asarray(mapped.anchor_indices)
@@ -391,12 +413,26 @@ def plan_task(
     keep_out = tuple(task.obstacles) + tuple(task.safety_shells)
     points_E = tool_clearance_points(task.X_tool0_E) if clearance_points_E is None else clearance_points_E
 
-    def compose(steps):
+    def compose(steps, overrides=None):
         path, critical, chosen, costs, max_position, max_rotation = compose_plan(
-            problem, steps, features, angles, keep_out, floor_z, points_E)
+            problem, steps, features, angles, keep_out, floor_z, points_E, overrides)
         timed = time_plan(path, critical, max_speed_m_s=max_speed_m_s,
                           max_angular_speed_rad_s=max_angular_speed_rad_s)
         return timed, chosen, costs, max_position, max_rotation
+
+    feature_list = list(features.values())
+
+    def alternatives(step):
+        """Other demo suffixes and twists for ``step``, best first (the default left out)."""
+        options = []
+        for first in problem.suffix_candidates(step, SUFFIX_ALTERNATIVES):
+            span = problem.span_allocation(step, first)
+            task_poses = np.array(
+                [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)])
+            for twist in twist_order(feature_list[step.demo].poses, span.allocation, task_poses, keep_out,
+                                     floor_z, points_E, limit=TWIST_ALTERNATIVES):
+                options.append((first, twist))
+        return options[1:]  # the first is the default mapping
 
     names = list(features)
     joint_path, blocked, rounds = None, (), 0
@@ -404,7 +440,7 @@ def plan_task(
         steps = solve(problem)
         composed = None if steps is None else compose(steps)
     else:
-        search = search_executable(problem, solve, compose, checker, names)
+        search = search_executable(problem, solve, compose, checker, names, alternatives=alternatives)
         steps, composed, joint_path, blocked, rounds = (
             search.steps, search.composed, search.joint_path, search.blocked, search.rounds)
     greedy_completed, fallback = q_outcome.get("greedy_completed"), q_outcome.get("fallback")
