@@ -201,3 +201,77 @@ def test_a_task_needing_the_wrist_3_winding_of_the_whole_plan_succeeds_in_closed
     judgement = judge_run(run)
     assert judgement.success, judgement.failures
     assert run.q[:, 5].min() > -2 * np.pi and run.q[:, 5].max() < 2 * np.pi
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_a_rigid_motion_of_the_whole_problem_keeps_the_plan(transferring, paper5, seed):
+    """Robot base, table, critical configurations, obstacles and shells turned by 0.4 rad
+    about the vertical and moved: the same composition, the same twists and suffixes, the
+    same joint path; the poses are the original ones moved rigidly (ties between equally
+    good choices are not decided by floating-point noise)."""
+    from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+
+    from drake_lfd.core.tasks import Box
+    from drake_lfd.diagrams.pipeline import joint_path_checker
+    from drake_lfd.robot.workcell import Workcell
+
+    T = RigidTransform(RotationMatrix.MakeZRotation(0.4), [0.3, -0.2, 0.0])
+    concrete = draw_trial(transferring, seed)
+
+    def moved_con(con):
+        X = T.multiply(RigidTransform(RollPitchYaw(np.array(con.euler_zyx)[::-1]), np.array(con.p)))
+        rpy = RollPitchYaw(X.rotation())
+        return ConcreteCriticalConfiguration.fixed(X.translation(), [rpy.yaw_angle(), rpy.pitch_angle(),
+                                                                     rpy.roll_angle()])
+
+    def moved_box(box):
+        return Box(name=box.name, centre=T.multiply(np.array(box.centre)), size=box.size,
+                   rotation=T.rotation().matrix() @ box.rotation)
+
+    moved = dataclasses.replace(
+        concrete, critical_configurations=tuple(moved_con(c) for c in concrete.critical_configurations),
+        X_WB=T.multiply(concrete.X_WB), obstacles=tuple(moved_box(b) for b in concrete.obstacles),
+        safety_shells=tuple(moved_box(b) for b in concrete.safety_shells))
+    results = []
+    for task in (concrete, moved):
+        workcell = Workcell.of(task)
+        results.append(plan_task(task, paper5, floor_z=workcell.planner_floor,
+                                 checker=joint_path_checker(workcell)))
+    original, rigid = results
+    assert original.planned and rigid.planned
+    assert [(s.demo, s.con_from, s.con_to) for s in original.composition] == \
+        [(s.demo, s.con_from, s.con_to) for s in rigid.composition]
+    X_original = original.timed.X_WE_list()
+    X_rigid = rigid.timed.X_WE_list()
+    assert len(X_original) == len(X_rigid)
+    worst = max(np.linalg.norm(T.multiply(a).translation() - b.translation()) for a, b in zip(X_original, X_rigid))
+    assert worst < 1e-6
+    # The start is solved by inverse kinematics to its tolerance: equal to 1e-4 rad.
+    np.testing.assert_allclose(original.joint_path.q[:, 1:], rigid.joint_path.q[:, 1:], atol=1e-4)
+
+
+def test_plan_of_a_configuration_5_m_away_exits_4_naming_it(tmp_path, capsys):
+    import json
+
+    import drake_lfd.cli as cli
+
+    task = tmp_path / "far.yaml"
+    task.write_text("""\
+name: far
+X_tool0_E: {p: [0, 0, 0.2], euler_zyx: [0, pi/2, 0]}
+critical_configurations:
+  - {p: [0.4, -0.2, 0.2], euler_zyx: [0, -pi/2, 0]}
+  - {p: [0.4, 0.0, 0.3], euler_zyx: [0, -pi/2, 0]}
+  - {p: [5.0, 0.2, 0.3], euler_zyx: [0, -pi/2, 0]}
+""")
+    out = tmp_path / "far.json"
+    start = time.perf_counter()
+    assert cli.main(["plan", str(task), "--library", "paper5", "--json", str(out)]) == 4
+    assert time.perf_counter() - start < 2.0
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("far: no executable plan: con_2 -> con_3: reach: con_3 at p = [5.0, 0.2, 0.3] m")
+    text = out.read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    document = json.loads(text)
+    assert document["status"] == "no_executable_plan" and document["total_cost"] is None
+    assert document["infeasible"][0]["reason"] == "reach" and document["joint_trajectory"] == {"t": [], "q": []}
