@@ -5,7 +5,8 @@ Run: ``python benchmarks/bench_executable_planning.py [--trials 5]``.
 For the paper's three tasks (transferring and filling-and-pouring with ``paper5``,
 assembling with ``paper6``; trials 0..N-1 drawn as ``simulate`` draws them) and for a
 20-configuration task chained from a 30-demonstration library (the five paper
-demonstrations, each under six names), prints the median and the largest wall time of
+demonstrations, each in six versions whose translations are stretched by 0-25 %, so no
+two features are equal), prints the median and the largest wall time of
 ``plan_task`` without the check ("before") and with it ("after": lazy search over
 compositions, the joint path of each checked one followed at the controller's 10 ms),
 with the rounds of the search and the status. The check is built once per scene, as
@@ -19,6 +20,11 @@ import time
 
 import numpy as np
 
+from drake_lfd.core.dual_quaternion import (
+    dual_quaternion_from_translation_rotation,
+    translation_rotation_from_dual_quaternion,
+)
+from drake_lfd.core.features import Feature
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.core.tasks import draw_trial
 from drake_lfd.io.library import Library, library_features
@@ -69,12 +75,17 @@ def main() -> None:
         report(f"{name} ({library}, {args.trials} trials)", before, after, results)
 
     paper5 = library_features(Library.open("paper5"))
-    library30 = {f"{name}_{copy}": feature for copy in range(6) for name, feature in paper5.items()}
+    library30 = {}
+    for copy in range(6):
+        for name, feature in paper5.items():
+            p, r = translation_rotation_from_dual_quaternion(feature.poses)
+            stretched = dual_quaternion_from_translation_rotation(p[0] + (1.0 + 0.05 * copy) * (p - p[0]), r)
+            library30[f"{name}_{copy}"] = Feature.from_poses(stretched)
     transferring = load_task(scenarios_directory() / "transferring.yaml")
     checker, floor = checker_for(transferring)
     before, after, results = [], [], []
     for seed in range(args.trials):
-        task, _ = chained_task(np.random.default_rng(seed), paper5, num_cons=20, name="chained20")
+        task, _ = chained_task(np.random.default_rng(seed), library30, num_cons=20, name="chained20")
         before.append(timed(lambda: plan_task(task, library30))[1])
         result, seconds = timed(lambda: plan_task(task, library30, checker=checker))
         after.append(seconds)

@@ -3,18 +3,24 @@
 A composition is planned in SE(3); whether the UR5e can run it shows only in joint
 space. Checking every legal action's joint path would cost a follow of the controller's
 law per action and start state, so the check is lazy, as lazy collision checking in
-sampling planners: solve for the best composition, follow its whole joint path
-(:meth:`~drake_lfd.robot.joint_path.JointPathChecker.follow_from_candidates`: every
-inverse-kinematics branch and 2 pi winding of the start), and if it is blocked, forbid
-the action (demo, span and candidate angles) whose span the first violation is in, and
-solve again. Both planners choose only among the actions left, so the composition
-returned is executable, or none is and every forbidden action is reported with its
-reason.
+sampling planners:
+
+1. solve for the best composition and follow its whole joint path from the preferred
+   start (:meth:`~drake_lfd.robot.joint_path.JointPathChecker.follow_from_candidates`:
+   the first pose's preferred inverse-kinematics branch, with its 2 pi windings);
+2. if it is blocked, try the blocked step's other mappings (another suffix of the
+   demonstration, another free twist; best first, a few of each) and keep the first
+   that gets the arm past the step;
+3. if none does, forbid the action (demo, span and candidate angles) and solve again.
+
+Both planners choose only among the actions left, so the composition returned is
+executable, or none is and every forbidden action is reported with its reason. Only
+when nothing runs from the preferred start does the search start over from the next
+branch (at most three).
 
 A span's feasibility depends on the joint state it starts from; forbidding the action
 for every start is the approximation that keeps the search small (an action blocked
-after one prefix may run after another). The free twist of each span is already chosen
-in SE(3) for clearance (``planner.map_span_clear``).
+after one prefix may run after another).
 
 Not for: the joint-space check itself (``robot/joint_path.py``) or building the plan
 (``planner.py``).
@@ -22,16 +28,20 @@ Not for: the joint-space check itself (``robot/joint_path.py``) or building the 
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from collections.abc import Callable
 
 from drake_lfd.planning.composition import CompositionProblem, Step
 from drake_lfd.robot.joint_path import Blocker, JointPath, JointPathChecker
 
-__all__ = ["MAX_SEARCH_ROUNDS", "InfeasibleSegment", "ExecutableSearch", "search_executable"]
+__all__ = ["MAX_SEARCH_ROUNDS", "MAX_START_BRANCHES", "InfeasibleSegment", "ExecutableSearch",
+           "search_executable"]
 
 # Solve-check-forbid rounds before giving up (each forbids one action).
 MAX_SEARCH_ROUNDS = 40
+# Inverse-kinematics branches of the first pose the search starts from, best first.
+MAX_START_BRANCHES = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -59,13 +69,15 @@ class ExecutableSearch:
 
     ``steps`` and ``composed`` (what ``compose`` returned for them) and ``joint_path``
     are None when nothing executes; ``blocked`` lists the forbidden segments, in the
-    order they were found; ``rounds`` counts the compositions checked."""
+    order they were found; ``rounds`` counts the compositions checked;
+    ``tried_a_start`` is False when no composition had the start branch asked for."""
 
     steps: list[Step] | None
     composed: tuple | None
     joint_path: JointPath | None
     blocked: tuple[InfeasibleSegment, ...]
     rounds: int
+    tried_a_start: bool = True
 
 
 def _span_keys(steps: list[Step], overrides: dict) -> list:
@@ -96,6 +108,7 @@ def search_executable(
     *,
     alternatives: Callable[[Step], list] | None = None,
     max_rounds: int = MAX_SEARCH_ROUNDS,
+    max_starts: int = MAX_START_BRANCHES,
 ) -> ExecutableSearch:
     """Lazy search for an executable composition (see the module docstring).
 
@@ -104,9 +117,35 @@ def search_executable(
     :class:`~drake_lfd.core.timing.TimedPlan`, ``overrides`` mapping a step's index to
     its ``(first_index, twist)``; ``alternatives(step)`` lists the other mappings of a
     step (demo suffix and twist) to try, best first, before the step is forbidden.
-    ``problem`` is modified (forbidden actions).
+
+    The search runs from the preferred start (inverse-kinematics branch) of the first
+    pose; only when nothing runs from it does it start over from the next branch, up to
+    ``max_starts``, each time on a fresh copy of ``problem`` (an action blocked from one
+    start may run from another). The blocked segments reported are the first start's.
     """
+    first = None
+    for start_index in range(max_starts):
+        attempt = copy.copy(problem)
+        attempt.cost = dict(problem.cost)
+        search = _search_from(attempt, solve, compose, checker, demo_names, start_index,
+                              alternatives=alternatives, max_rounds=max_rounds)
+        if search.steps is not None:
+            if first is not None:
+                search = dataclasses.replace(search, blocked=first.blocked + search.blocked,
+                                             rounds=first.rounds + search.rounds)
+            return search
+        if first is None:
+            first = search
+        if not search.tried_a_start:
+            break  # no composition even had this start branch to try
+    return first
+
+
+def _search_from(problem, solve, compose, checker, demo_names, start_index, *, alternatives, max_rounds):
+    """The lazy search with the start fixed to branch ``start_index`` (see
+    :func:`search_executable`)."""
     blocked: list[InfeasibleSegment] = []
+    tried_a_start = False
     overrides: dict[Step, tuple] = {}  # mappings adopted for steps, by step
     tried: set[Step] = set()  # steps whose alternatives were tried
     rounds = 0
@@ -114,17 +153,23 @@ def search_executable(
         rounds += 1
         steps = solve(problem)
         if steps is None:
-            return ExecutableSearch(None, None, None, tuple(blocked), rounds - 1)
+            return ExecutableSearch(None, None, None, tuple(blocked), rounds - 1, tried_a_start)
 
         def check(current: dict):
+            """Composes with the mappings ``current`` and follows it from the start branch
+            ``start_index`` (with its windings); None when there is no such branch."""
             composed = compose(steps, {i: current[s] for i, s in enumerate(steps) if s in current})
             timed = composed[0]
             starts = checker.start_candidates(timed.X_WE_list()[0])
-            if not starts:
+            if len(starts) <= start_index:
                 return composed, None
-            return composed, checker.follow_from_candidates(timed, starts, _span_keys(steps, current))
+            path = checker.follow_from_candidates(timed, starts[start_index:start_index + 1],
+                                                  _span_keys(steps, current))
+            return composed, dataclasses.replace(path, start_index=start_index)
 
         composed, path = check(overrides)
+        if path is not None:
+            tried_a_start = True
         if path is None:
             # con_1 at this candidate has no collision-free joint configuration: no
             # action from it can run.
@@ -135,10 +180,18 @@ def search_executable(
             problem.forbid_state(step.j, step.a_j)
             continue
         if path.executable:
-            return ExecutableSearch(steps, composed, path, tuple(blocked), rounds)
+            return ExecutableSearch(steps, composed, path, tuple(blocked), rounds, True)
         index = _blocking_index(steps, path.blocker)
         step = steps[index]
         first_blocker = path.blocker
+        if first_blocker.time_s == 0.0:
+            # The start itself is blocked: no action from this candidate of con_1 can
+            # run from this branch.
+            blocked.append(InfeasibleSegment(step.j + 1, step.k + 1, first_blocker.reason,
+                                             f"at con_{step.j + 1}, the start: {first_blocker.detail}",
+                                             demo_names[step.demo]))
+            problem.forbid_state(steps[0].j, steps[0].a_j)
+            continue
         passed = False
         if alternatives is not None and step not in tried:
             tried.add(step)
@@ -152,9 +205,9 @@ def search_executable(
                     break
         if passed:
             if path.executable:
-                return ExecutableSearch(steps, composed, path, tuple(blocked), rounds)
+                return ExecutableSearch(steps, composed, path, tuple(blocked), rounds, True)
             continue  # the next blocker is in a later step
         blocked.append(InfeasibleSegment(step.j + 1, step.k + 1, first_blocker.reason, first_blocker.detail,
                                          demo_names[step.demo]))
         problem.forbid(step)
-    return ExecutableSearch(None, None, None, tuple(blocked), max_rounds)
+    return ExecutableSearch(None, None, None, tuple(blocked), max_rounds, tried_a_start)

@@ -413,24 +413,38 @@ def plan_task(
     keep_out = tuple(task.obstacles) + tuple(task.safety_shells)
     points_E = tool_clearance_points(task.X_tool0_E) if clearance_points_E is None else clearance_points_E
 
+    feature_list = list(features.values())
+    twist_memo: dict = {}
+
+    def twists_of(step, first, limit):
+        """The twist order of ``step`` mapped from suffix ``first`` (memoized: the search
+        composes the same steps again and again)."""
+        key = (step, first, limit)
+        if key not in twist_memo:
+            span = problem.span_allocation(step, first)
+            task_poses = np.array(
+                [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)])
+            twist_memo[key] = twist_order(feature_list[step.demo].poses, span.allocation, task_poses, keep_out,
+                                          floor_z, points_E, limit=limit)
+        return twist_memo[key]
+
     def compose(steps, overrides=None):
+        overrides = dict(overrides or {})
+        for index, step in enumerate(steps):
+            first, twist = overrides.get(index, (None, None))
+            if twist is None:
+                overrides[index] = (first, twists_of(step, first, 1)[0])
         path, critical, chosen, costs, max_position, max_rotation = compose_plan(
             problem, steps, features, angles, keep_out, floor_z, points_E, overrides)
         timed = time_plan(path, critical, max_speed_m_s=max_speed_m_s,
                           max_angular_speed_rad_s=max_angular_speed_rad_s)
         return timed, chosen, costs, max_position, max_rotation
 
-    feature_list = list(features.values())
-
     def alternatives(step):
         """Other demo suffixes and twists for ``step``, best first (the default left out)."""
         options = []
         for first in problem.suffix_candidates(step, SUFFIX_ALTERNATIVES):
-            span = problem.span_allocation(step, first)
-            task_poses = np.array(
-                [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)])
-            for twist in twist_order(feature_list[step.demo].poses, span.allocation, task_poses, keep_out,
-                                     floor_z, points_E, limit=TWIST_ALTERNATIVES):
+            for twist in twists_of(step, first, TWIST_ALTERNATIVES):
                 options.append((first, twist))
         return options[1:]  # the first is the default mapping
 

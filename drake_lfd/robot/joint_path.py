@@ -415,15 +415,17 @@ class JointPathChecker:
 
     # -- candidates ----------------------------------------------------------------------
     def start_candidates(self, X_WE: RigidTransform) -> list[np.ndarray]:
-        """The inverse-kinematics branches reaching ``X_WE``, best first (the closed
-        loop's initial configuration is the first; cached per pose). Empty when none."""
+        """The inverse-kinematics branches reaching ``X_WE`` at the clearance from every
+        obstacle and shell, best first (the closed loop's initial configuration is the
+        first; cached per pose). Empty when none."""
         key = np.ascontiguousarray(X_WE.GetAsMatrix34()).tobytes()
         if key not in self._start_cache:
             try:
                 found = initial_configuration_candidates(X_WE, X_WB=self.X_WB, scene=self.scene)
             except UnreachableConfigurationError:
                 found = []
-            self._start_cache[key] = [c.q for c in found if c.collision_free]
+            clearance = self.limits.clearance_m
+            self._start_cache[key] = [c.q for c in found if c.collision_free and c.min_distance_m >= clearance]
         return self._start_cache[key]
 
     def follow_from_candidates(self, plan: TimedPlan, starts: Sequence[np.ndarray],
