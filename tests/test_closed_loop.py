@@ -92,7 +92,8 @@ def test_html_recording_is_written_and_self_contained(tracked, html_path):
     assert len(html) > 1_000_000  # three.js and the animation are inlined
     # Meshcat's commands are inlined as base64 msgpack: the scene and an animation.
     commands = [base64.b64decode(b) for b in re.findall(r"data:application/octet-binary;base64,([A-Za-z0-9+/=]+)", html)]
-    for name in (b"shell_below", b"block", b"wrist_3_link", b"animation"):
+    for name in (b"shell_below", b"block", b"wrist_3_link", b"animation", b"plan/tool_path", b"plan/con_1",
+                 b"plan/con_3"):
         assert any(name in command for command in commands), name
 
 
@@ -100,7 +101,7 @@ def test_html_recording_is_written_and_self_contained(tracked, html_path):
 def test_html_recording_shows_the_arm_and_the_obstacle(tracked, html_path, tmp_path):
     def shows_everything(image):
         return (fraction_of_hue(image, channel=0) > 0.001 and fraction_of_hue(image, channel=2) > 0.001
-                and fraction_of_purple(image) > 0.005)
+                and fraction_of_purple(image) > 0.005 and fraction_of_hue(image, channel=1) > 0.00025)
 
     image = screenshot(html_path, tmp_path / "run.png")
     if not shows_everything(image):  # a loaded machine can starve the renderer: once more, longer
@@ -108,6 +109,7 @@ def test_html_recording_shows_the_arm_and_the_obstacle(tracked, html_path, tmp_p
     assert fraction_of_hue(image, channel=0) > 0.001  # the red obstacle
     assert fraction_of_hue(image, channel=2) > 0.001  # the UR's blue joint caps
     assert fraction_of_purple(image) > 0.005  # the translucent purple safety shell
+    assert fraction_of_hue(image, channel=1) > 0.00025  # the green planned path and the triads' y axes
 
 
 @pytest.mark.parametrize(

@@ -275,3 +275,29 @@ critical_configurations:
     document = json.loads(text)
     assert document["status"] == "no_executable_plan" and document["total_cost"] is None
     assert document["infeasible"][0]["reason"] == "reach" and document["joint_trajectory"] == {"t": [], "q": []}
+
+
+@pytest.mark.slow
+def test_simulate_meshcat_shows_the_plan_live(capsys):
+    """``simulate --meshcat`` prints the viewer's address and draws the planned path and
+    the critical configurations there (the same markers as the recordings)."""
+    import drake_lfd.cli as cli
+    import drake_lfd.diagrams.closed_loop as closed_loop
+
+    drawn = []
+    original = closed_loop.draw_plan
+
+    def spy(meshcat, plan, **kwargs):
+        drawn.append((meshcat.HasPath("/drake"), len(plan.critical_indices)))
+        original(meshcat, plan, **kwargs)
+        assert meshcat.HasPath("/drake/plan/tool_path") and meshcat.HasPath("/drake/plan/con_1/x")
+
+    closed_loop.draw_plan = spy
+    try:
+        code = cli.main(["simulate", str(scenarios_directory() / "assembling.yaml"), "--library", "paper6",
+                         "--meshcat"])
+    finally:
+        closed_loop.draw_plan = original
+    assert code == 0
+    assert "Meshcat viewer at http://" in capsys.readouterr().out
+    assert drawn and drawn[0][1] == 4

@@ -41,6 +41,9 @@ def add_parser(subparsers) -> None:
                              "each trial is also appended to OUT's .jsonl file as it finishes")
     parser.add_argument("--html", metavar="REC.html",
                         help="write a Meshcat recording of the first trial that runs (missing folders are created)")
+    parser.add_argument("--meshcat", action="store_true",
+                        help="show every trial live in a Meshcat viewer as it runs (prints the address to open "
+                             "in a browser; needs Drake's meshcat network access) (default: off)")
     parser.add_argument("--figures", metavar="DIR",
                         help="write figures of the first trial that ran into DIR (created if missing): "
                              "SE(3) plan, joints, distance to shells")
@@ -59,6 +62,8 @@ def run(args) -> int:
     require_seed(args.seed)
     if args.html:
         require_meshcat("--html")
+    if args.meshcat:
+        require_meshcat("--meshcat")
     prepare_output(args.json, "--json")
     prepare_output(args.html, "--html")
     prepare_output(args.figures, "--figures", folder=True)
@@ -78,9 +83,15 @@ def run(args) -> int:
             bar.update(done, "ok" if outcome.success else "failed")
 
         library.write_feature_caches()
+        meshcat = None
+        if args.meshcat:
+            from pydrake.geometry import Meshcat
+
+            meshcat = Meshcat()
+            print(f"{task.name}: Meshcat viewer at {meshcat.web_url()} (open it in a browser)", flush=True)
         outcomes, wall = run_trials(
             task, library_features(library), trials=args.trials, seed=args.seed, planner=args.planner,
-            policy=policy, record_html=args.html, progress=progress,
+            policy=policy, record_html=args.html, progress=progress, meshcat=meshcat,
         )
         bar.close()
     except BaseException:

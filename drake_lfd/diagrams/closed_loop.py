@@ -47,6 +47,7 @@ from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.diagrams.pipeline import Pipeline, build_pipeline
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.planning.replanning import ScheduledPlan
+from drake_lfd.diagrams.plan_markers import draw_plan
 from drake_lfd.robot.initial_ik import InitialConfiguration, solve_initial_configuration
 from drake_lfd.robot.kinematics import NUM_JOINTS, UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene
@@ -327,6 +328,8 @@ class ClosedLoopRunner:
         pipeline.logger.FindMutableLog(context).Clear()
         visualizer = station.visualizer
         recording = record_html is not None and visualizer is not None
+        if self.meshcat is not None:
+            draw_plan(self.meshcat, scheduled.timed)  # the planned path and the critical configurations
         if recording:
             X_critical = [scheduled.timed.X_WE_list()[i] for i in scheduled.timed.critical_indices]
             target = 0.5 * (station.X_WB.translation() + np.mean([X.translation() for X in X_critical], axis=0))

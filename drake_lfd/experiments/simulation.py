@@ -82,14 +82,19 @@ class TrialRunner:
 
     def __init__(self, task: Task, features: Mapping[str, Feature], *, planner: str = "exact",
                  policy: QPolicy | None = None, with_table: bool = True, config: PipelineConfig | None = None,
-                 joint_check: bool = True):
+                 joint_check: bool = True, meshcat: Meshcat | None = None):
         check_problem_size(task, features)  # a problem too large is refused before the pipeline is built
         self.task = task
         self._options = dict(features=features, planner=planner, policy=policy, with_table=with_table,
                              joint_check=joint_check,
                              config=config if config is not None else task.simulation)
-        self._runner = ClosedLoopRunner(build_pipeline(task, **self._options))
         self._recording_runner = None
+        if meshcat is not None:
+            # Live: every trial runs on the pipeline that draws into ``meshcat``.
+            self._runner = self._recording_runner = ClosedLoopRunner(
+                build_pipeline(task, meshcat=meshcat, **self._options), record_meshcat=meshcat)
+        else:
+            self._runner = ClosedLoopRunner(build_pipeline(task, **self._options))
         kinematics = self._runner.kinematics
         self._joint_limits = kinematics.position_limits()
         self._velocity_limits = kinematics.velocity_limits()
@@ -149,12 +154,13 @@ def run_trials(
     policy: QPolicy | None = None,
     record_html: str | Path | None = None,
     progress: Callable[[int, int, TrialOutcome], None] | None = None,
+    meshcat: Meshcat | None = None,
 ) -> tuple[list[TrialOutcome], float]:
     """Runs ``trials`` trials (seeds ``seed``, ``seed + 1``, ...) on one pipeline Diagram;
-    the first one that plans is recorded to ``record_html``. Returns the outcomes and the
-    wall time (planning included)."""
+    the first one that plans is recorded to ``record_html``; with ``meshcat``, every trial
+    is shown there as it runs. Returns the outcomes and the wall time (planning included)."""
     start = time.perf_counter()
-    runner = TrialRunner(task, features, planner=planner, policy=policy)
+    runner = TrialRunner(task, features, planner=planner, policy=policy, meshcat=meshcat)
     outcomes = []
     recorded = record_html is None
     for i in range(trials):
