@@ -156,23 +156,10 @@ def _rotation_angle(R_a: RotationMatrix, R_b: RotationMatrix) -> float:
     return float(R_a.inverse().multiply(R_b).ToAngleAxis().angle())
 
 
-def solve_initial_configuration(
-    X_WE_desired: RigidTransform,
-    *,
-    X_WB: RigidTransform | None = None,
-    X_tool0_E: RigidTransform | None = None,
-    obstacles: Iterable[Box] = (),
-    safety_shells: Iterable[Box] = (),
-    con: int = 1,
-    q_nominal: np.ndarray | None = None,
-    scene: KinematicScene | None = None,
-    tool=None,
-) -> InitialConfiguration:
+def solve_initial_configuration(X_WE_desired: RigidTransform, **kwargs) -> InitialConfiguration:
     """Joint configuration placing E at ``X_WE_desired``, elbow up when possible: the
-    first of :func:`initial_configuration_candidates` (same parameters)."""
-    return initial_configuration_candidates(
-        X_WE_desired, X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles, safety_shells=safety_shells,
-        con=con, q_nominal=q_nominal, scene=scene, tool=tool)[0]
+    first of :func:`initial_configuration_candidates` (the same keyword parameters)."""
+    return initial_configuration_candidates(X_WE_desired, **kwargs)[0]
 
 
 def initial_configuration_candidates(
