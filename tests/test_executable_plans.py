@@ -301,3 +301,24 @@ def test_simulate_meshcat_shows_the_plan_live(capsys):
     assert code == 0
     assert "Meshcat viewer at http://" in capsys.readouterr().out
     assert drawn and drawn[0][1] == 4
+
+
+def test_the_margins_are_configurable_in_the_task_file(tmp_path, capsys):
+    import drake_lfd.cli as cli
+
+    task = tmp_path / "strict.yaml"
+    head = """\
+name: strict
+X_tool0_E: {p: [0, 0, 0.2], euler_zyx: [0, pi/2, 0]}
+critical_configurations:
+  - {p: [0.4, -0.2, 0.2], euler_zyx: [0, -pi/2, 0]}
+  - {p: [0.4, 0.0, 0.3], euler_zyx: [0, -pi/2, 0]}
+"""
+    task.write_text(head)
+    assert cli.main(["plan", str(task), "--library", "paper5"]) == 0
+    task.write_text(head + "simulation:\n  joint_check: {elbow_margin: 0.99}\n")
+    assert cli.main(["plan", str(task), "--library", "paper5"]) == 4
+    assert "elbow straight" in capsys.readouterr().err
+    task.write_text(head + "simulation:\n  joint_check: {clearance_m: -1}\n")
+    assert cli.main(["plan", str(task), "--library", "paper5"]) == 2
+    assert "simulation.joint_check.clearance_m" in capsys.readouterr().err

@@ -40,7 +40,7 @@ from drake_lfd.diagrams.station import Station
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan
-from drake_lfd.robot.joint_path import JointPathChecker
+from drake_lfd.robot.joint_path import JointPathChecker, JointPathLimits
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME
 from drake_lfd.robot.workcell import Workcell, table_under_robot
 from drake_lfd.systems.differential_ik import DifferentialIKController
@@ -55,9 +55,12 @@ __all__ = ["Pipeline", "build_pipeline", "joint_path_checker", "scheduled_plan_f
 def joint_path_checker(workcell: Workcell, config: PipelineConfig | None = None) -> JointPathChecker:
     """The plan-time joint-space check of ``workcell`` with the closed loop's controller
     (period, gain, speed fraction of ``config``), so a checked plan's joint path is the
-    one the controller will command."""
-    controller = (PipelineConfig() if config is None else config).checked().controller
-    return JointPathChecker.for_workcell(workcell, time_step=controller.time_step,
+    one the controller will command, and ``config.joint_check``'s margins."""
+    config = (PipelineConfig() if config is None else config).checked()
+    controller, margins = config.controller, config.joint_check
+    limits = JointPathLimits(elbow_margin=margins.elbow_margin, wrist_margin=margins.wrist_margin,
+                             shoulder_margin_m=margins.shoulder_margin_m, clearance_m=margins.clearance_m)
+    return JointPathChecker.for_workcell(workcell, limits=limits, time_step=controller.time_step,
                                          position_gain=controller.position_gain,
                                          velocity_limit_fraction=controller.velocity_limit_fraction)
 

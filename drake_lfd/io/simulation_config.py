@@ -28,6 +28,7 @@ __all__ = [
     "ControllerConfig",
     "MonitorConfig",
     "PlannerSystemConfig",
+    "JointCheckConfig",
     "PipelineConfig",
     "STATION_TIME_STEP_S",
     "CLOSED_LOOP_TIME_STEP_S",
@@ -126,6 +127,27 @@ class PlannerSystemConfig:
 
 
 @dataclasses.dataclass
+class JointCheckConfig:
+    """The plan-time joint-space check (:mod:`drake_lfd.robot.joint_path`): the margins a
+    planned joint path must keep (docs/method.rst, Executable plans).
+
+    Attributes
+    ----------
+    elbow_margin, wrist_margin : float
+        Least ``|sin q3|`` (elbow straight) and ``|sin q5|`` (wrist aligned), in (0, 1).
+    shoulder_margin_m : float
+        Least distance of the wrist point from the shoulder axis, m.
+    clearance_m : float
+        Least distance of every link and tool shape to obstacles, shells and the table, m.
+    """
+
+    elbow_margin: float = 0.06
+    wrist_margin: float = 0.06
+    shoulder_margin_m: float = 0.05
+    clearance_m: float = 0.01
+
+
+@dataclasses.dataclass
 class PipelineConfig:
     """Everything a closed-loop run is configured by.
 
@@ -147,6 +169,7 @@ class PipelineConfig:
     controller: ControllerConfig = dataclasses.field(default_factory=ControllerConfig)
     monitor: MonitorConfig = dataclasses.field(default_factory=MonitorConfig)
     planner: PlannerSystemConfig = dataclasses.field(default_factory=PlannerSystemConfig)
+    joint_check: JointCheckConfig = dataclasses.field(default_factory=JointCheckConfig)
     log_period: float = 0.01
     settle_s: float = 0.5
 
@@ -162,6 +185,16 @@ class PipelineConfig:
         positive(self.controller.time_step, "controller.time_step")
         positive(self.monitor.period, "monitor.period")
         positive(self.planner.check_period, "planner.check_period")
+        for name in ("elbow_margin", "wrist_margin"):
+            value = getattr(self.joint_check, name)
+            if not (isinstance(value, (int, float)) and 0.0 <= value < 1.0):
+                raise InputError(f"must be a number in [0, 1), got {value!r}", file=file,
+                                 field=f"simulation.joint_check.{name}")
+        for name in ("shoulder_margin_m", "clearance_m"):
+            value = getattr(self.joint_check, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0.0):
+                raise InputError(f"must be a finite number >= 0, got {value!r}", file=file,
+                                 field=f"simulation.joint_check.{name}")
         positive(self.log_period, "log_period")
         positive(self.station.visualizer_publish_period, "station.visualizer_publish_period")
         positive(self.station.drive.gear_ratio, "station.drive.gear_ratio")
