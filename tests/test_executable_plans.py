@@ -322,3 +322,23 @@ critical_configurations:
     task.write_text(head + "simulation:\n  joint_check: {clearance_m: -1}\n")
     assert cli.main(["plan", str(task), "--library", "paper5"]) == 2
     assert "simulation.joint_check.clearance_m" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_simulate_exit_codes_say_what_happened(tmp_path):
+    """0 when every trial succeeded, 3 when every trial needs a demonstration, 4 when a
+    trial has no executable plan (or failed)."""
+    import drake_lfd.cli as cli
+
+    sims = scenarios_directory()
+    assert cli.main(["simulate", str(sims / "assembling.yaml"), "--library", "paper6"]) == 0
+    assert cli.main(["simulate", str(sims / "assembling.yaml"), "--library", "paper5", "--trials", "2"]) == 3
+    far = tmp_path / "far.yaml"
+    far.write_text("""\
+name: far
+X_tool0_E: {p: [0, 0, 0.2], euler_zyx: [0, pi/2, 0]}
+critical_configurations:
+  - {p: [0.4, -0.2, 0.2], euler_zyx: [0, -pi/2, 0]}
+  - {p: [5.0, 0.2, 0.3], euler_zyx: [0, -pi/2, 0]}
+""")
+    assert cli.main(["simulate", str(far), "--library", "paper5"]) == 4

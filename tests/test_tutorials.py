@@ -15,7 +15,7 @@ import pytest
 from drake_lfd.io.library import Library
 
 TUTORIALS = Path(__file__).resolve().parent.parent / "tutorials"
-STEMS = ("01_transferring", "02_filling_pouring", "03_assembling", "04_record_your_own")
+STEMS = ("01_transferring", "02_filling_pouring", "03_assembling", "04_record_your_own", "05_real_robot")
 # A notebook has no command line: this environment variable selects the short run.
 SHORT = "DRAKE_LFD_TUTORIAL_SHORT"
 REGENERATE = "jupytext --to ipynb tutorials/{stem}.py"
@@ -99,11 +99,23 @@ def _check_record_your_own(summary, out):
     assert summary["trials"]["assembling"]["success"], summary["trials"]["assembling"]["failures"]
 
 
+def _check_real_robot(summary, out):
+    _assert_files(out, ["plan.json", "plan.script", "plan.csv", "plan.yaml", "exported_joints.png", "summary.json"])
+    assert (out / "span_bag" / "metadata.yaml").is_file()
+    assert summary["library"][-1] == "span_from_bag"
+    assert summary["plan_status"] == "planned"
+    assert ["span_from_bag", 2, 3] in summary["composition"]
+    assert summary["slow_down"] >= 1.0 and summary["servoj_targets"] > 1000
+    script = (out / "plan.script").read_text()
+    assert "movej(" in script and "stopj(" in script
+
+
 CHECKS = {
     "01_transferring": _check_transferring,
     "02_filling_pouring": _check_filling_pouring,
     "03_assembling": _check_assembling,
     "04_record_your_own": _check_record_your_own,
+    "05_real_robot": _check_real_robot,
 }
 
 
@@ -127,6 +139,10 @@ def test_filling_pouring(tmp_path, monkeypatch):
 
 def test_assembling(tmp_path, monkeypatch):
     _check_assembling(_run_script("03_assembling", tmp_path, monkeypatch), tmp_path)
+
+
+def test_real_robot(tmp_path, monkeypatch):
+    _check_real_robot(_run_script("05_real_robot", tmp_path, monkeypatch), tmp_path)
 
 
 def test_record_your_own(tmp_path, monkeypatch):

@@ -45,6 +45,7 @@ _COMMAND_MODULES = (
     "drake_lfd.cli.train",
     "drake_lfd.cli.plan",
     "drake_lfd.cli.simulate",
+    "drake_lfd.cli.export",
     "drake_lfd.cli.paper",
     "drake_lfd.cli.show_model",
 )
@@ -235,7 +236,7 @@ def _run(argv: list[str] | None) -> int:
         command = f"drake-lfd {args.command}"
         return int(args.func(args) or 0)
     except InputError as error:
-        _say(f"{command}: error: {error}")
+        _say(f"{command}: error: {' '.join(str(error).splitlines())}")  # one line, whatever the message
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         return _interrupted(command, argv)

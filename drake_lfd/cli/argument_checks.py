@@ -91,7 +91,9 @@ def prepare_output(path: str | Path | None, option: str, *, folder: bool = False
     asked for where a folder exists, a folder where a file exists, creating a folder
     fails (a file in the way, no permission), or a file cannot be created in the folder
     (:func:`require_writable_folder`: read-only, no permission, a special folder such as
-    ``/proc``), or the file's name is too long for the file system.
+    ``/proc``), or the file's name is too long for the file system. An existing path that
+    is neither a file nor a folder (a device such as ``/dev/stdout``, a named pipe) is
+    only checked for write permission: it is written into, not replaced.
 
     Parameters
     ----------
@@ -118,6 +120,10 @@ def prepare_output(path: str | Path | None, option: str, *, folder: bool = False
         return path
     if path.is_dir():
         raise InputError("is a folder; give the path of the file to write", file=str(path), field=option)
+    if path.exists() and not path.is_file():  # a device or a pipe (/dev/stdout): written into directly
+        if not os.access(path, os.W_OK):
+            raise InputError("cannot be written (no permission)", file=str(path), field=option)
+        return path
     _make_folder(path.parent, path, option)
     require_writable_folder(path.parent, path, option)
     _require_name_fits(path, option)

@@ -2,8 +2,10 @@
 
 A thin front end over :mod:`drake_lfd.io.library` (documented in docs/cli.rst):
 
-- ``library add LIB DEMO.csv --name NAME [--description TEXT]`` reads a UR RTDE joint
-  log (or the project's own CSV) and adds it. If ``LIB`` does not exist (or is an empty
+- ``library add LIB DEMO --name NAME [--description TEXT]`` reads a UR RTDE joint
+  log (or the project's own CSV), or a ROS 1/2 bag of ``sensor_msgs/JointState``
+  (:mod:`drake_lfd.io.log_import`: ``--rate``, ``--topic``, ``--start``/``--end``,
+  ``--tcp-offset``, whose report goes to stdout), and adds it. If ``LIB`` does not exist (or is an empty
   directory) and is not a bundled library's name, a new library is created there, with
   the end-effector frame ``X_tool0_E`` given by ``--tool0-E-p X Y Z`` and
   ``--tool0-E-euler-zyx YAW PITCH ROLL`` (radians; ``pi/2`` or ``90deg`` forms
@@ -20,7 +22,8 @@ A thin front end over :mod:`drake_lfd.io.library` (documented in docs/cli.rst):
   the way (``delta`` at 0, 50 and 75 % of the resampled motion, like the paper's Table
   5), as a quaternion (w, x, y, z) and as axis-angle, with the direction of the delta's
   translation (in the frame of that sample). ``--json OUT`` also writes the
-  machine-readable listing (``-`` writes it to stdout instead of the table). First it
+  machine-readable listing, strict JSON written atomically (``-`` writes it to stdout
+  instead of the table). First it
   writes the missing or stale feature caches of a user's library
   (``Library.write_feature_caches``; reading a library writes nothing by itself). It
   also names the bundled libraries and where they are installed.
@@ -36,7 +39,6 @@ other commands (one module each in ``drake_lfd/cli``).
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 from pathlib import Path
@@ -46,7 +48,9 @@ import numpy as np
 from drake_lfd.core.dual_quaternion import axis_angle_from_quaternion
 from drake_lfd.core.errors import EXIT_OK, InputError
 from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
-from drake_lfd.io.demonstration_logs import read_rtde_csv
+from drake_lfd.cli.argument_checks import prepare_output
+from drake_lfd.io.atomic_files import atomic_write_bytes
+from drake_lfd.io.log_import import read_demonstration_log
 from drake_lfd.io.library import (
     END_EFFECTOR_FRAME_TOLERANCE,
     Library,
@@ -58,6 +62,7 @@ from drake_lfd.io.library import (
 )
 from drake_lfd.io.library_manifest import check_demo_name
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
+from drake_lfd.io.strict_json import strict_json_text
 from drake_lfd.io.yaml_checks import angle_from_text
 
 __all__ = [
@@ -91,7 +96,7 @@ def add_parser(subparsers):
 
     add = actions.add_parser(
         "add",
-        help="add a demonstration (RTDE joint log) to a library",
+        help="add a demonstration (RTDE CSV joint log, or ROS 1/2 bag of sensor_msgs/JointState) to a library",
         description=(
             "Add a demonstration to LIB. LIB is created when it does not exist; its end-effector "
             "frame X_tool0_E must then be given with both --tool0-E-p and --tool0-E-euler-zyx "
@@ -99,7 +104,12 @@ def add_parser(subparsers):
         ),
     )
     add.add_argument("library", metavar="LIB", help="library directory (created if missing)")
-    add.add_argument("log", metavar="DEMO.csv", help="UR RTDE joint log (timestamp, actual_q_0..5)")
+    add.add_argument(
+        "log",
+        metavar="DEMO",
+        help="UR RTDE CSV joint log (actual_q_0..5, and timestamp or --rate), a ROS 1 .bag file or a ROS 2 bag "
+             "directory (sqlite3 or mcap) with sensor_msgs/JointState",
+    )
     add.add_argument("--name", required=True, help="demonstration name: letters, digits, '_', '-'")
     add.add_argument("--description", default="", help="what was demonstrated")
     add.add_argument(
@@ -120,6 +130,22 @@ def add_parser(subparsers):
         "--keep-all-rows",
         action="store_true",
         help="keep every row of the log (default: only rows with runtime_state 2, PLAYING, if that column exists)",
+    )
+    add.add_argument("--rate", type=float, metavar="HZ",
+                     help="sample rate of an RTDE CSV without a timestamp column (for example 50, 125 or 500)")
+    add.add_argument("--topic", metavar="T",
+                     help="bag only: the sensor_msgs/JointState topic (default /joint_states)")
+    add.add_argument("--start", type=float, metavar="S",
+                     help="keep from S seconds after the log's first sample (a bag: its first message)")
+    add.add_argument("--end", type=float, metavar="S",
+                     help="keep up to S seconds after the log's first sample (a bag: its first message)")
+    add.add_argument(
+        "--tcp-offset",
+        nargs="+",
+        type=float,
+        metavar="V",
+        help="RTDE CSV with actual_TCP_pose_0..5: the robot's TCP on tool0, X Y Z (m) [RX RY RZ (rotation vector, "
+             "rad)]; reports how far the joints' forward kinematics is from the logged TCP pose",
     )
     add.set_defaults(func=run_add)
 
@@ -216,9 +242,13 @@ def run_add(args):
     # Everything that can refuse the add runs before the library is touched.
     new = _is_new_library(args.library)
     X_tool0_E = _new_library_frame(args, p, euler) if new else None
-    check_demo_name(args.name)
-    demonstration, warnings = read_rtde_csv(
-        args.log, name=args.name, description=args.description, filter_runtime_state=not args.keep_all_rows
+    try:
+        check_demo_name(args.name)
+    except InputError as error:  # the option, and the library it was meant for
+        raise InputError(error.problem, file=args.library, field="--name") from None
+    demonstration, warnings, reports = read_demonstration_log(
+        args.log, name=args.name, description=args.description, filter_runtime_state=not args.keep_all_rows,
+        rate_hz=args.rate, topic=args.topic, start_s=args.start, end_s=args.end, tcp_offset=args.tcp_offset,
     )
     if new:  # checks the demonstration before it creates anything
         library, entry = Library.create_with(
@@ -231,6 +261,8 @@ def run_add(args):
         entry = library.add(demonstration, args.name, args.description, source=args.log)
     for warning in warnings:
         print(f"drake-lfd library: warning: {warning}", file=sys.stderr)
+    for report in reports:
+        print(report)
     print(
         f"added {entry.name!r} to {library.label}: {entry.samples} samples, "
         f"{entry.duration_s:.3f} s"
@@ -365,14 +397,16 @@ def run_show(args):
     library = Library.open(args.library)
     library.write_feature_caches()  # a user's library keeps fresh caches; bundled ones none
     listing = library_listing(library)
+    text = strict_json_text(listing, indent=2)
     if args.json == "-":
-        print(json.dumps(listing, indent=2))
+        print(text)
         return EXIT_OK
     if args.json:
+        output = prepare_output(args.json, "--json")
         try:
-            Path(args.json).write_text(json.dumps(listing, indent=2) + "\n", encoding="utf-8")
-        except OSError as error:
-            raise InputError(f"cannot write: {error.strerror}", file=args.json) from None
+            atomic_write_bytes(output, (text + "\n").encode("utf-8"))
+        except OSError as error:  # one line naming OUT; a full disk is exit 1 (cli/app.py)
+            raise OSError(error.errno, error.strerror or str(error), str(output)) from None
     print(format_listing(listing))
     return EXIT_OK
 

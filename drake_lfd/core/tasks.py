@@ -22,6 +22,7 @@ closed-loop diagram).
 """
 
 import dataclasses
+import fractions
 import itertools
 import math
 
@@ -299,10 +300,16 @@ def angle_grid_count(lower, upper, step_rad):
     """How many samples :func:`angle_grid` gives, computed without making them (a
     Python int, however large: ``planning/problem_size.py`` checks it before anything
     is allocated)."""
+    if not step_rad > 0.0:
+        raise ValueError(f"the grid step must be positive, got {step_rad!r}")
     span = float(upper) - float(lower)
     if span <= 0.0:
         return 1
-    return int(math.ceil(span / step_rad - 1e-9)) + 1
+    ratio = span / step_rad
+    if not math.isfinite(ratio):  # bounds near the float limit: count exactly
+        exact = (fractions.Fraction(float(upper)) - fractions.Fraction(float(lower))) / fractions.Fraction(step_rad)
+        return math.ceil(exact) + 1
+    return int(math.ceil(ratio - 1e-9)) + 1
 
 
 def angle_candidates(con):

@@ -1,13 +1,14 @@
 """Atomic file writes: a reader (or a crash) sees the old file or the new one, never a mix.
 
 Used for everything drake-lfd writes that a user keeps: library manifests and joint logs,
-policies, recorded demonstrations, JSON results.
+policies, recorded demonstrations, JSON results. JSON written here is strict
+(:func:`atomic_write_json`: non-finite numbers as ``null``, as :mod:`drake_lfd.io.strict_json`).
 """
 
 from __future__ import annotations
 
-import json
 import os
+import stat
 import tempfile
 from pathlib import Path
 
@@ -32,7 +33,8 @@ def atomic_write_bytes(path, data):
     Writes a temporary file in the same directory, flushes and fsyncs it, renames it
     over ``path`` with ``os.replace`` and fsyncs the directory. On any failure the
     temporary file is removed and ``path`` is untouched. A new file gets mode 0644, an
-    existing one keeps its mode.
+    existing one keeps its mode. A ``path`` that is not a regular file (a device such as
+    ``/dev/stdout``, a named pipe) is written into directly.
 
     Parameters
     ----------
@@ -41,9 +43,18 @@ def atomic_write_bytes(path, data):
     """
     path = Path(path)
     try:
-        mode = path.stat().st_mode & 0o777
+        status = path.stat()
+        mode = status.st_mode & 0o777
     except FileNotFoundError:
+        status = None
         mode = 0o644
+    if status is not None and not stat.S_ISREG(status.st_mode):
+        # A device or a pipe (``--json /dev/stdout``, a named pipe): nothing to replace
+        # atomically, and renaming over /dev/stdout would replace the device itself.
+        with open(path, "wb") as file:
+            file.write(data)
+            file.flush()
+        return
     fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as file:
@@ -63,5 +74,9 @@ def atomic_write_bytes(path, data):
 
 
 def atomic_write_json(path, document) -> None:
-    """Writes ``document`` as indented JSON, atomically."""
-    atomic_write_bytes(path, (json.dumps(document, indent=1) + "\n").encode("utf-8"))
+    """Writes ``document`` as indented, strict JSON, atomically: a number that is not
+    finite is written as ``null`` (the value does not exist or could not be computed,
+    :mod:`drake_lfd.io.strict_json`), never as ``NaN`` or ``Infinity``."""
+    from drake_lfd.io.strict_json import strict_json_text  # that module writes through this one
+
+    atomic_write_bytes(path, (strict_json_text(document) + "\n").encode("utf-8"))

@@ -6,7 +6,12 @@ Universal Robots' RTDE interface, so that is the import format: a CSV whose head
 names the columns, among them ``timestamp`` and ``actual_q_0`` .. ``actual_q_5``
 (radians, joint order shoulder_pan .. wrist_3), separated by spaces (UR's
 ``record.py``) or commas (``ur_rtde``'s file recording); the separator is sniffed from
-the header and any other columns are ignored.
+the header and any other columns are ignored, in any order (a full recording's 125
+columns; a name the header repeats is refused only if the read uses that column). A
+log without ``timestamp`` (a free-drive recording) is read with its sample rate
+(:func:`read_rtde_log`, ``rate_hz``), which can also return further columns (the TCP
+pose that ``rtde_logs.py`` checks the joints against). ROS bags are ``rosbag_logs.py``'s;
+``log_import.py`` picks the reader.
 
 The project's own format is the same CSV with exactly the columns
 ``timestamp,actual_q_0,...,actual_q_5``, floats written with ``repr`` precision so a
@@ -69,9 +74,11 @@ __all__ = [
     "RUNTIME_STATE_COLUMN",
     "RUNTIME_STATE_PLAYING",
     "LoadedDemonstration",
+    "RtdeLog",
     "parse_number",
     "check_plausible_motion",
     "read_rtde_csv",
+    "read_rtde_log",
     "log_sample_summary",
     "rtde_csv_text",
     "write_rtde_csv",
@@ -98,6 +105,18 @@ _NUMBER_PATTERN = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?
 _NON_FINITE_SPELLINGS = frozenset(
     sign + word for sign in ("", "+", "-") for word in ("nan", "inf", "infinity")
 )
+
+
+class RtdeLog(NamedTuple):
+    """What :func:`read_rtde_log` read: the demonstration, its warnings, the extra
+    columns asked for that the log has (name -> array, shape (m,), for the kept rows)
+    and the timestamp of the log's first data row (before any ``runtime_state``
+    filter; the origin of a time window)."""
+
+    demonstration: Demonstration
+    warnings: tuple[str, ...]
+    extra: dict
+    first_timestamp: float
 
 
 class LoadedDemonstration(NamedTuple):
@@ -138,14 +157,16 @@ def _cell(token, path, number, column):
     return value
 
 
-def _header_columns(header_line, path):
+def _header_columns(header_line, path, *, used=None, needs_timestamp=True):
+    # used: the columns a reader takes; a duplicated name outside it is ignored (a full
+    # RTDE recording can name an unused column twice). None: every duplicate is refused.
     delimiter = "," if "," in header_line else None  # None: any run of whitespace
     columns = _split(header_line, delimiter)
     seen = set()
     for column in columns:
         if not column:
             raise InputError("the header has an empty column name", file=path, field="line 1")
-        if column in seen:
+        if column in seen and (used is None or column in used):
             raise InputError(f"the header names column {column!r} twice", file=path, field="line 1")
         seen.add(column)
     joint_indices = sorted(
@@ -159,11 +180,14 @@ def _header_columns(header_line, path):
             file=path,
             field="line 1",
         )
-    missing = [name for name in (TIMESTAMP_COLUMN,) + JOINT_COLUMNS if name not in columns]
+    required = ((TIMESTAMP_COLUMN,) if needs_timestamp else ()) + JOINT_COLUMNS
+    missing = [name for name in required if name not in columns]
     if missing:
         raise InputError(
             f"missing column(s) {', '.join(missing)} (an RTDE log needs timestamp and "
-            "actual_q_0 .. actual_q_5)",
+            "actual_q_0 .. actual_q_5"
+            + ("; for a log without timestamps give its sample rate, library add --rate HZ)"
+               if TIMESTAMP_COLUMN in missing else ")"),
             file=path,
             field="line 1",
         )
@@ -241,8 +265,16 @@ def check_plausible_motion(timestamps, joint_positions, *, file, field_of):
         )
 
 
-def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True):
-    """Reads a UR RTDE joint log (or the project's own format) as a demonstration.
+def read_rtde_log(path, *, name=None, description="", filter_runtime_state=True, rate_hz=None,
+                  extra_columns=()):
+    """Reads a UR RTDE joint log (or the project's own format) as a demonstration, with
+    any extra columns asked for (:class:`RtdeLog`).
+
+    Without a ``timestamp`` column, ``rate_hz`` gives the sample times: data row ``k``
+    (counting from 0, before the ``runtime_state`` filter) is at ``k / rate_hz`` s. With
+    one, the timestamps are used and a given rate is ignored, with a warning. A column
+    name the header repeats is refused only if it is one this read uses (``timestamp``,
+    the joints, ``runtime_state``, ``extra_columns``); other duplicates are ignored.
 
     Parameters
     ----------
@@ -256,11 +288,16 @@ def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True)
     filter_runtime_state : bool
         If the log has a ``runtime_state`` column, keep only rows with the robot
         running its program (:data:`RUNTIME_STATE_PLAYING`); see the module docstring.
+    rate_hz : float, optional
+        The sample rate of a log without a ``timestamp`` column (Hz, positive).
+    extra_columns : sequence of str
+        Further numeric columns to return, for the kept rows, when the log has them
+        (for example ``actual_TCP_pose_0`` .. ``actual_TCP_pose_5``).
 
     Returns
     -------
-    loaded : LoadedDemonstration
-        ``(demonstration, warnings)``.
+    log : RtdeLog
+        ``(demonstration, warnings, extra, first_timestamp)``.
 
     Raises
     ------
@@ -293,13 +330,21 @@ def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True)
     if not lines:
         raise InputError("the file is empty; expected an RTDE CSV log with a header row", file=path)
     header_number, header_line = lines[0]
-    columns, delimiter = _header_columns(header_line, path)
-    wanted = (TIMESTAMP_COLUMN,) + JOINT_COLUMNS
+    if rate_hz is not None and not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise InputError(f"{rate_hz!r} is not a sample rate (Hz, a positive number)", field="rate")
+    extra_columns = tuple(extra_columns)
+    used = {TIMESTAMP_COLUMN, RUNTIME_STATE_COLUMN, *JOINT_COLUMNS, *extra_columns}
+    columns, delimiter = _header_columns(header_line, path, used=used, needs_timestamp=rate_hz is None)
+    from_rate = TIMESTAMP_COLUMN not in columns  # then rate_hz gives the sample times
+    warnings = []
+    if rate_hz is not None and not from_rate:
+        warnings.append(f"{path}: the log has a timestamp column; used it and ignored the rate {rate_hz:g} Hz")
+    extras = tuple(column for column in extra_columns if column in columns)
+    wanted = (() if from_rate else (TIMESTAMP_COLUMN,)) + JOINT_COLUMNS + extras
     wanted_index = [columns.index(column) for column in wanted]
     runtime_index = columns.index(RUNTIME_STATE_COLUMN) if RUNTIME_STATE_COLUMN in columns else None
 
-    warnings = []
-    rows = []  # (line number, [t, q0..q5], runtime_state or None)
+    rows = []  # (line number, [t, q0..q5, extras...], runtime_state or None)
     data_lines = lines[1:]
     for position, (number, line) in enumerate(data_lines):
         is_last = position == len(data_lines) - 1
@@ -335,8 +380,11 @@ def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True)
                 raise InputError(
                     f"{value!r} is not a finite number", file=path, field=f"line {number}, column {column}"
                 )
+        if from_rate:  # data row `position` is at position / rate_hz
+            values.insert(0, position / rate_hz)
         rows.append((number, values, runtime_state))
 
+    first_timestamp = rows[0][1][0] if rows else None  # before the runtime_state filter
     if runtime_index is not None and filter_runtime_state and rows:
         playing = [row for row in rows if row[2] == RUNTIME_STATE_PLAYING]
         if not playing:
@@ -368,16 +416,33 @@ def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True)
             check_joint_value(value, file=path, field=f"line {number}, column {column}")
 
     table = np.array([values for _, values, _ in rows])
+    joints = table[:, 1 : 1 + NUM_JOINTS]
     check_plausible_motion(
-        table[:, 0], table[:, 1:], file=path, field_of=lambda index: f"line {rows[index][0]}"
+        table[:, 0], joints, file=path, field_of=lambda index: f"line {rows[index][0]}"
     )
     demonstration = Demonstration(
         name=path.stem if name is None else name,
         timestamps=table[:, 0],
-        joint_positions=table[:, 1:],
+        joint_positions=joints,
         description=description,
     )
-    return LoadedDemonstration(demonstration, tuple(warnings))
+    extra = {column: table[:, 1 + NUM_JOINTS + i].copy() for i, column in enumerate(extras)}
+    return RtdeLog(demonstration, tuple(warnings), extra, float(first_timestamp))
+
+
+def read_rtde_csv(path, *, name=None, description="", filter_runtime_state=True, rate_hz=None):
+    """Reads a UR RTDE joint log (or the project's own format) as a demonstration:
+    :func:`read_rtde_log` without extra columns.
+
+    Returns
+    -------
+    loaded : LoadedDemonstration
+        ``(demonstration, warnings)``.
+    """
+    log = read_rtde_log(
+        path, name=name, description=description, filter_runtime_state=filter_runtime_state, rate_hz=rate_hz
+    )
+    return LoadedDemonstration(log.demonstration, log.warnings)
 
 
 def log_sample_summary(log_bytes, path):

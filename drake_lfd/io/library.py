@@ -53,7 +53,7 @@ copy of one (or of any library) in a new directory, atomically. Demonstration na
 their log files do not collide on case-insensitive file systems).
 
 Not for: the manifest's format (``library_manifest.py``), the cache files
-(``feature_cache.py``), reading foreign log formats (``demonstration_logs.py``),
+(``feature_cache.py``), reading foreign log formats (``demonstration_logs.py``, ``rtde_logs.py``, ``rosbag_logs.py``, ``log_import.py``),
 comparing features (``similarity.py``), the command line (``cli/library.py``).
 """
 
@@ -771,6 +771,9 @@ def copy_library(source, destination, **feature_parameters):
     The copy has the source's manifest (frame, entries, order, ``added`` times), its
     joint logs and fresh feature caches. It is built in a temporary directory beside
     ``destination`` and renamed into place, so ``destination`` never holds half a copy.
+    The source's shared lock is held while it is read (its manifest re-read under the
+    lock), so a concurrent ``add`` or ``remove`` on the source waits and the copy is the
+    library before or after it, never a mix.
 
     Parameters
     ----------
@@ -793,6 +796,15 @@ def copy_library(source, destination, **feature_parameters):
         or one of its joint logs is damaged. Nothing is left behind then.
     """
     library = source if isinstance(source, Library) else Library.open(source, **feature_parameters)
+    with shared_lock(Path(library.path) / LOCK_NAME):  # writers of the source wait until it is read
+        # Re-read under the lock: a writer may have changed the source since it was opened.
+        library = Library._load(library.path, label=library.label, read_only=library.read_only,
+                                **feature_parameters)
+        return _copy_into(library, destination, **feature_parameters)
+
+
+def _copy_into(library, destination, **feature_parameters):
+    """:func:`copy_library` of an opened ``library``, with its shared lock held."""
     destination = Path(destination)
     if destination.exists():
         if not destination.is_dir():

@@ -49,6 +49,7 @@ __all__ = [
     "DEMOS_DIRECTORY",
     "CACHE_DIRECTORY",
     "NAME_PATTERN",
+    "MAX_NAME_LENGTH",
     "DemoEntry",
     "Manifest",
     "check_demo_name",
@@ -66,16 +67,27 @@ TEMPORARY_PATTERN = ".*.tmp"
 DEMOS_DIRECTORY = "demos"
 CACHE_DIRECTORY = "cache"
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9_-]+$")
+#: Longest demonstration name: its files (``demos/NAME.csv``, ``cache/NAME.npz`` and their
+#: temporary ``.NAME.csv.RANDOM.tmp``) must fit the 255 bytes of a file name.
+MAX_NAME_LENGTH = 100
 
 _MANIFEST_KEYS = ("schema_version", "X_tool0_E", "demos")
 _ENTRY_KEYS = ("name", "file", "samples", "duration_s", "description", "added")
 
 
 def check_demo_name(name):
-    """Raises InputError unless ``name`` matches ``[A-Za-z0-9_-]+``."""
+    """Raises InputError unless ``name`` matches ``[A-Za-z0-9_-]+`` and has at most
+    :data:`MAX_NAME_LENGTH` characters."""
     if not isinstance(name, str) or not NAME_PATTERN.match(name):
+        shown = name if not isinstance(name, str) or len(name) <= 60 else name[:40] + "..."
         raise InputError(
-            f"invalid demonstration name {name!r}: use letters, digits, '_' and '-' only",
+            f"invalid demonstration name {shown!r}: use letters, digits, '_' and '-' only",
+            field="name",
+        )
+    if len(name) > MAX_NAME_LENGTH:
+        raise InputError(
+            f"the demonstration name {name[:20]!r}... is too long ({len(name)} characters; at most {MAX_NAME_LENGTH}: "
+            "it names the files demos/NAME.csv and cache/NAME.npz)",
             field="name",
         )
 
@@ -248,16 +260,24 @@ def read_manifest(directory, *, check_logs=True) -> Manifest:
 
 
 def manifest_text(manifest: Manifest) -> str:
-    """The text of ``library.json`` (ends with a newline)."""
+    """The text of ``library.json`` (ends with a newline), strict JSON.
+
+    Raises
+    ------
+    ValueError
+        A number is not finite (a manifest never holds one: entries come from checked
+        demonstrations, and :func:`read_manifest` would refuse it).
+    """
     # json.dumps(indent=2) would put every number of the pose on its own line;
     # this layout keeps the pose on one line and each entry as an indented block.
     demos = ",\n".join(
-        "    " + json.dumps(entry.to_json(), indent=2).replace("\n", "\n    ") for entry in manifest.entries
+        "    " + json.dumps(entry.to_json(), indent=2, allow_nan=False).replace("\n", "\n    ")
+        for entry in manifest.entries
     )
     return (
         "{\n"
         f'  "schema_version": {SCHEMA_VERSION},\n'
-        f'  "X_tool0_E": {json.dumps(manifest.X_tool0_E_json)},\n'
+        f'  "X_tool0_E": {json.dumps(manifest.X_tool0_E_json, allow_nan=False)},\n'
         + ('  "demos": [\n' + demos + "\n  ]\n" if manifest.entries else '  "demos": []\n')
         + "}\n"
     )

@@ -108,7 +108,16 @@ __all__ = [
     "task_spec_from_text",
     "task_from_spec",
     "load_task",
+    "MAX_CRITICAL_CONFIGURATIONS",
+    "MIN_ANGLE_GRID_DEG",
 ]
+
+#: Most critical configurations a task may have: planning time grows with the square of
+#: their number (100 fixed ones plan in about 15 s on one core, 200 take minutes).
+MAX_CRITICAL_CONFIGURATIONS = 100
+#: Finest ``angle_grid_deg``: finer grids are far over the planning limits anyway
+#: (planning/problem_size.py), and a grid of 1e-320 deg would be 0 rad.
+MIN_ANGLE_GRID_DEG = 1e-3
 
 # No ``from __future__ import annotations`` here: yaml_load_typed reads the Spec fields'
 # types at run time and needs them as types, not strings.
@@ -296,8 +305,9 @@ def task_from_spec(spec, *, file=None):
     X_WB = pose(spec.X_WB, file=file, field="X_WB")
     X_tool0_E = pose(spec.X_tool0_E, file=file, field="X_tool0_E")
     grid = finite(spec.angle_grid_deg, file=file, field="angle_grid_deg")
-    if not 0.0 < grid <= 360.0:
-        raise InputError(f"must be in (0, 360] degrees, got {grid:g}", file=file, field="angle_grid_deg")
+    if not MIN_ANGLE_GRID_DEG <= grid <= 360.0:
+        raise InputError(f"must be in [{MIN_ANGLE_GRID_DEG:g}, 360] degrees, got {grid:g}", file=file,
+                         field="angle_grid_deg")
 
     variables = {}
     for variable, values in spec.variables.items():
@@ -313,6 +323,13 @@ def task_from_spec(spec, *, file=None):
     if len(specs) < MIN_CRITICAL_CONFIGURATIONS:
         raise InputError(
             f"a task needs at least {MIN_CRITICAL_CONFIGURATIONS} critical configurations, got {len(specs)}",
+            file=file,
+            field="critical_configurations",
+        )
+    if len(specs) > MAX_CRITICAL_CONFIGURATIONS:
+        raise InputError(
+            f"a task has at most {MAX_CRITICAL_CONFIGURATIONS} critical configurations, got {len(specs)} "
+            "(planning time grows with the square of their number); split the task",
             file=file,
             field="critical_configurations",
         )

@@ -45,6 +45,7 @@ from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
 
 __all__ = [
     "MAX_YAML_DEPTH",
+    "MAX_YAML_FILE_BYTES",
     "MAX_COORDINATE_M",
     "Scalar",
     "required",
@@ -64,6 +65,9 @@ __all__ = [
     "pose",
 ]
 
+#: Largest YAML file read, in bytes: a task file is a few kilobytes; parsing megabytes
+#: of YAML takes seconds per megabyte before anything could be checked.
+MAX_YAML_FILE_BYTES = 1 << 20
 #: Deepest nesting of mappings and lists a file may have (a task file needs 5).
 MAX_YAML_DEPTH = 32
 #: Largest magnitude of a position coordinate, in metres: beyond any robot's reach, and
@@ -93,11 +97,19 @@ class PoseSpec:
 # ----------------------------------------------------------------------------- reading
 
 
-class UniqueKeyLoader(yaml.SafeLoader):
+# libyaml's parser when PyYAML has it (about 10 times faster on a large file), else PyYAML's own.
+_SafeLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+class UniqueKeyLoader(_SafeLoader):
     """A SafeLoader that refuses a key written twice in one mapping (PyYAML silently
     keeps the last one) and says where."""
 
     def construct_mapping(self, node, deep=False):
+        if not isinstance(node, yaml.MappingNode):  # ``!!map [1, 2]``: a tag on another kind
+            raise yaml.constructor.ConstructorError(
+                None, None, f"the tag {node.tag.replace('tag:yaml.org,2002:', '!!')} needs a mapping", node.start_mark,
+            )
         seen = {}
         for key_node, _ in node.value:
             if key_node.tag == "tag:yaml.org,2002:merge":
@@ -116,6 +128,24 @@ class UniqueKeyLoader(yaml.SafeLoader):
                 pass  # unhashable keys are reported by the schema check
         return super().construct_mapping(node, deep=deep)
 
+    def _decimal_only(self, node):
+        text = str(node.value)
+        if "_" in text or ":" in text or re.match(r"^[-+]?0[0-9box]", text):
+            raise yaml.constructor.ConstructorError(
+                None, None,
+                f"{text!r} is a number only YAML 1.1 spells so (digit separators '_', octal, hex, binary or "
+                "base-60); write it in decimal digits, such as 0.5 or 5",
+                node.start_mark,
+            )
+
+    def construct_yaml_int(self, node):
+        self._decimal_only(node)
+        return super().construct_yaml_int(node)
+
+    def construct_yaml_float(self, node):
+        self._decimal_only(node)
+        return super().construct_yaml_float(node)
+
     def construct_object(self, node, deep=False):
         # A tag that cannot convert its value (``!!float abc``, ``!!int 0.5``) raises a
         # bare ValueError in PyYAML; make it a YAML error that knows the line.
@@ -123,12 +153,16 @@ class UniqueKeyLoader(yaml.SafeLoader):
             return super().construct_object(node, deep=deep)
         except yaml.YAMLError:
             raise
-        except (ValueError, TypeError, OverflowError) as error:
+        except (ValueError, TypeError, OverflowError, LookupError, AttributeError) as error:  # ``!!bool maybe``
             tag = node.tag.replace("tag:yaml.org,2002:", "!!")
             raise yaml.constructor.ConstructorError(
                 None, None, f"the tag {tag} cannot read {getattr(node, 'value', '')!r}",
                 node.start_mark,
             ) from None
+
+
+UniqueKeyLoader.add_constructor("tag:yaml.org,2002:int", UniqueKeyLoader.construct_yaml_int)
+UniqueKeyLoader.add_constructor("tag:yaml.org,2002:float", UniqueKeyLoader.construct_yaml_float)
 
 
 def check_yaml_depth(text, file, limit=MAX_YAML_DEPTH):
@@ -142,7 +176,7 @@ def check_yaml_depth(text, file, limit=MAX_YAML_DEPTH):
     """
     depth = 0
     try:
-        for event in yaml.parse(text, Loader=yaml.SafeLoader):
+        for event in yaml.parse(text, Loader=_SafeLoader):
             if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
                 depth += 1
                 if depth > limit:
@@ -160,8 +194,13 @@ def check_yaml_depth(text, file, limit=MAX_YAML_DEPTH):
 def yaml_error(error, file):
     """The :class:`InputError` for a ``yaml.YAMLError``, naming the line and column."""
     mark = getattr(error, "problem_mark", None)
-    problem = getattr(error, "problem", None) or str(error)
+    problem = getattr(error, "problem", None) or getattr(error, "reason", None) or str(error)
+    problem = " ".join(str(problem).split())  # one line (PyYAML's messages have several)
     field = None if mark is None else f"line {mark.line + 1} column {mark.column + 1}"
+    if mark is None and isinstance(error, yaml.reader.ReaderError):  # a character YAML forbids
+        field = f"character {error.position + 1}"
+        code = error.character if isinstance(error.character, int) else ord(error.character)
+        problem = f"{problem} (U+{code:04X})"
     if "could not determine a constructor" in problem:
         problem = "YAML tags (!Name) are not used in task files"
     return InputError(f"not valid YAML: {problem}", file=file, field=field)
@@ -178,7 +217,12 @@ def read_text(path, *, directory_problem=None):
     """
     path = Path(path)
     try:
-        return path.read_text(encoding="utf-8")
+        with path.open("rb") as file:
+            data = file.read(MAX_YAML_FILE_BYTES + 1)
+        if len(data) > MAX_YAML_FILE_BYTES:
+            raise InputError(f"larger than {MAX_YAML_FILE_BYTES // 2**20} MiB; a drake-lfd YAML file is a few kilobytes",
+                             file=path)
+        return data.decode("utf-8")
     except FileNotFoundError:
         raise InputError("no such file", file=path) from None
     except IsADirectoryError as error:
@@ -216,6 +260,8 @@ def load_spec(text, schema, *, file, document, keys):
         raise yaml_error(error, file) from None
     except RecursionError:  # deep aliases; the depth check above covers plain nesting
         raise InputError(f"nested too deeply (more than {MAX_YAML_DEPTH} levels)", file=file) from None
+    except (ValueError, TypeError, OverflowError, LookupError, AttributeError) as error:  # a lazily built tag
+        raise InputError(f"not valid YAML: {error}", file=file) from None
     if raw is None:
         raise InputError(f"{document} is empty", file=file)
     if not isinstance(raw, dict):
@@ -265,8 +311,10 @@ def _matches_scalar(value, schema):
     if isinstance(value, bool) or value is None:
         return False
     if schema is float:
-        if isinstance(value, (int, float)):
+        if isinstance(value, float):
             return True
+        if isinstance(value, int):  # an integer of hundreds of digits is no float
+            return abs(value) < 2**1023
         if isinstance(value, str):  # PyYAML reads 1e-3 (no dot) as a string
             try:
                 float(value)
@@ -364,9 +412,16 @@ def check_schema(value, schema, path, file, expected=None):
 # ------------------------------------------------------------------------------ values
 
 _PI_EXPRESSION = re.compile(
-    r"^([+-]?)\s*(\d+(?:\.\d*)?|\.\d+)?\s*\*?\s*pi\s*(?:/\s*(\d+(?:\.\d*)?|\.\d+))?$"
+    r"^([+-]?)\s*(\d+(?:\.\d*)?|\.\d+)?\s*\*?\s*pi\s*(?:/\s*(\d+(?:\.\d*)?|\.\d+))?$", re.ASCII
 )
-_DEGREES = re.compile(r"^([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*deg$")
+_DEGREES = re.compile(r"^([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*deg$", re.ASCII)
+
+
+def _python_only_spelling(text):
+    """Whether ``text`` spells a number only Python's ``float`` reads: an underscore
+    (``0_5``) or any character that is not ASCII (Arabic-Indic or fullwidth digits,
+    Unicode spaces). YAML, C and every other reader refuse those."""
+    return "_" in text or not text.isascii()
 
 
 def angle_from_text(text):
@@ -376,6 +431,8 @@ def angle_from_text(text):
     ``"3*pi/4"``, ``"0.5pi"``) and degrees (``"-90deg"``).
     """
     text = text.strip()
+    if _python_only_spelling(text):
+        return None
     try:
         return float(text)
     except ValueError:
@@ -396,11 +453,17 @@ def angle_from_text(text):
 
 
 def finite(value, *, file, field, what="a number"):
-    """A finite float from a checked scalar (a number or a numeric string)."""
+    """A finite float from a checked scalar (a number or a numeric string in ASCII,
+    without Python's ``_`` digit separators)."""
+    if isinstance(value, str) and _python_only_spelling(value):
+        raise InputError(f"expected {what}, got {kind_of(value)} (write ASCII digits, without '_')",
+                         file=file, field=field)
     try:
         number = float(value)
     except (TypeError, ValueError):
         raise InputError(f"expected {what}, got {kind_of(value)}", file=file, field=field) from None
+    except OverflowError:  # an integer of hundreds of digits
+        raise InputError("is not a finite number (too large for any float)", file=file, field=field) from None
     if not math.isfinite(number):
         raise InputError(f"{value!r} is not a finite number", file=file, field=field)
     return number

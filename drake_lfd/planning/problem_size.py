@@ -143,14 +143,22 @@ def estimate_problem_size(candidates: Sequence[int], demo_deltas: int, num_demos
     return ProblemSize(candidates, pairs, pairs * demo_deltas, work, peak_bytes, worst_end)
 
 
+def _huge_text(number: int) -> str:
+    """``1.2e+345`` for an int too large for a float (or for ``str``)."""
+    exponent = int(math.log10(number))
+    return f"{number / 10**exponent:.2g}e+{exponent}"
+
+
 def _size_text(size_bytes: int) -> str:
+    if size_bytes >= 2**30 * 10**12:
+        return f"{_huge_text(size_bytes // 2**30)} GiB"
     if size_bytes >= 2**30:
         return f"{size_bytes / 2**30:.1f} GiB"
     return f"{size_bytes / 2**20:.0f} MiB"
 
 
 def _count_text(count: int) -> str:
-    return f"{count:,}" if count < 10**12 else f"{count:.3g}"
+    return f"{count:,}" if count < 10**12 else _huge_text(count)
 
 
 def _fits(size: ProblemSize) -> bool:
