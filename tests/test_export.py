@@ -20,36 +20,22 @@ import yaml
 
 from cli_subprocess import cli_command, cli_env
 from drake_lfd.cli.app import main
+from drake_lfd.experiments.rederive import dh_forward_kinematics
 from drake_lfd.io.demonstration_logs import read_rtde_csv
 from drake_lfd.io.trajectory_export import least_slow_down, load_plan_trajectory
 
 REPOSITORY = Path(__file__).resolve().parent.parent
 TASKS = {"transferring": "paper5", "filling_pouring": "paper5", "assembling": "paper6"}
 
-# Universal Robots' UR5e DH table (data sheet).
-D = [0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996]
-A = [0.0, -0.425, -0.3922, 0.0, 0.0, 0.0]
-ALPHA = [math.pi / 2, 0.0, 0.0, math.pi / 2, -math.pi / 2, 0.0]
 SPEED_LIMIT = math.pi  # 180 deg/s
 ACCELERATION_LIMIT = 40.0  # rad/s^2, docs/cli.rst
 SERVOJ = re.compile(r"^\s*servoj\(\[([^\]]*)\], a=0, v=0, t=([0-9.]+), lookahead_time=([0-9.]+), gain=([0-9.]+)\)$")
 MOVEJ = re.compile(r"^\s*movej\(\[([^\]]*)\], a=([0-9.]+), v=([0-9.]+)\)$")
 
 
-def dh_tool0(q):
-    """tool0 in the base frame, q (m, 6) -> (m, 4, 4)."""
-    q = np.atleast_2d(q)
-    T = np.broadcast_to(np.eye(4), (len(q), 4, 4)).copy()
-    for i in range(6):
-        c, s = np.cos(q[:, i]), np.sin(q[:, i])
-        ca, sa = math.cos(ALPHA[i]), math.sin(ALPHA[i])
-        M = np.zeros((len(q), 4, 4))
-        M[:, 0] = np.stack([c, -s * ca, s * sa, A[i] * c], axis=1)
-        M[:, 1] = np.stack([s, c * ca, -c * sa, A[i] * s], axis=1)
-        M[:, 2, 1:] = [sa, ca, D[i]]
-        M[:, 3, 3] = 1.0
-        T = T @ M
-    return T
+# tool0 in the base frame from UR's DH table, q (m, 6) -> (m, 4, 4): independent of the
+# project's Drake model (the kinematics the paper run re-derives its successes with).
+dh_tool0 = dh_forward_kinematics
 
 
 def matrix(pose):

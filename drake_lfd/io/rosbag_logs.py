@@ -41,6 +41,7 @@ import numpy as np
 from drake_lfd.core.demonstrations import NUM_JOINTS, Demonstration, check_demonstration
 from drake_lfd.core.errors import InputError
 from drake_lfd.io.demonstration_logs import check_plausible_motion
+from drake_lfd.robot.kinematics import UR5E_JOINT_NAMES
 
 __all__ = [
     "UR_JOINT_NAMES",
@@ -55,14 +56,7 @@ __all__ = [
 ]
 
 #: UR's joint names, in the project's joint order (shoulder_pan .. wrist_3).
-UR_JOINT_NAMES = (
-    "shoulder_pan_joint",
-    "shoulder_lift_joint",
-    "elbow_joint",
-    "wrist_1_joint",
-    "wrist_2_joint",
-    "wrist_3_joint",
-)
+UR_JOINT_NAMES = UR5E_JOINT_NAMES
 #: Where ``ur_robot_driver`` publishes the joints.
 DEFAULT_TOPIC = "/joint_states"
 #: The message type read (ROS 1's ``sensor_msgs/JointState``; rosbags names both so).
