@@ -98,8 +98,9 @@ def run(args) -> int:
         # Interrupted (or failed) part-way: say what finished and where it is kept.
         for line in lines:
             print(line, flush=True)
-        if finished is not None and finished.count:
-            print(f"{task.name}: {finished.count} finished trial(s) of {args.trials} are in {finished.path}",
+        on_disk = finished.records_on_disk() if finished is not None else 0
+        if on_disk:
+            print(f"{task.name}: {on_disk} finished trial(s) of {args.trials} are in {finished.path}",
                   flush=True)
         raise
     finally:

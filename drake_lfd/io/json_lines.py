@@ -52,6 +52,16 @@ class JsonLinesFile:
             raise OSError(error.errno, error.strerror or str(error), str(self.path)) from None
         self.count += 1
 
+    def records_on_disk(self) -> int:
+        """How many whole records the file holds now (an interrupt may fall between a
+        line reaching the file and :attr:`count` counting it, and signals reach any
+        thread, so this is what an interrupted run reports)."""
+        try:
+            self._file.flush()
+        except (OSError, ValueError):
+            pass
+        return len(read_json_lines(self.path))
+
     def close(self) -> None:
         if not self._file.closed:
             try:
