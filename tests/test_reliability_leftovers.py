@@ -18,7 +18,7 @@ import time
 
 import pytest
 
-from cli_subprocess import cli_command, cli_env, run_cli, stderr_lines
+from cli_subprocess import cli_command, cli_env
 from drake_lfd.cli import main
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.io.atomic_files import atomic_write_bytes, atomic_write_json

@@ -37,7 +37,6 @@ import json
 import math
 import random
 import re
-from pathlib import Path
 from typing import Callable, Iterator
 
 import yaml
@@ -257,7 +256,6 @@ def alias_bomb(rng, text):
     for level in range(1, levels):
         previous = f"*a{level - 1}"
         lines.append(f"a{level}: &a{level} [{', '.join([previous] * 9)}]")
-    bomb = "\n".join(lines)
     if rng.random() < 0.5:  # as ignored root keys (anchors for reuse)
         return text + "\n" + "\n".join("_" + line for line in lines) + "\n", None
     data = _structured(rng, text)

@@ -23,7 +23,6 @@ with a note (:mod:`drake_lfd.core.network_policy`). Not for: the command line (`
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import time

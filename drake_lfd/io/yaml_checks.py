@@ -153,7 +153,7 @@ class UniqueKeyLoader(_SafeLoader):
             return super().construct_object(node, deep=deep)
         except yaml.YAMLError:
             raise
-        except (ValueError, TypeError, OverflowError, LookupError, AttributeError) as error:  # ``!!bool maybe``
+        except (ValueError, TypeError, OverflowError, LookupError, AttributeError):  # ``!!bool maybe``
             tag = node.tag.replace("tag:yaml.org,2002:", "!!")
             raise yaml.constructor.ConstructorError(
                 None, None, f"the tag {tag} cannot read {getattr(node, 'value', '')!r}",
