@@ -76,9 +76,10 @@ def test_plan_exact_writes_the_interface_json(library_dir, chain_task, tmp_path)
     assert len(plan["critical_indices"]) == 3 and plan["critical_indices"][0] == 0
     times = [pose["t"] for pose in plan["poses"]]
     assert times[0] == 0.0 and all(b > a for a, b in zip(times, times[1:]))
-    # The plan meets each critical configuration exactly.
+    # The poses are E along the checked joint path, which meets each critical
+    # configuration within the check's reach error (the geometric pass rests there).
     for con, index in zip(plan["critical_configurations"], plan["critical_indices"]):
-        np.testing.assert_allclose(plan["poses"][index]["p"], con["p"], atol=1e-9)
+        np.testing.assert_allclose(plan["poses"][index]["p"], con["p"], atol=1e-4)
 
 
 def test_train_then_plan_with_the_q_policy(library_dir, chain_task, tmp_path):

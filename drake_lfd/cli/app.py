@@ -45,6 +45,7 @@ _COMMAND_MODULES = (
     "drake_lfd.cli.train",
     "drake_lfd.cli.plan",
     "drake_lfd.cli.simulate",
+    "drake_lfd.cli.sweep",
     "drake_lfd.cli.export",
     "drake_lfd.cli.paper",
     "drake_lfd.cli.show_model",

@@ -7,6 +7,7 @@ kept in ``DIR/trials.jsonl`` as it finishes (:mod:`drake_lfd.experiments.paper`)
 from __future__ import annotations
 
 from drake_lfd.cli.argument_checks import prepare_output, require_at_least, require_seed
+from drake_lfd.cli.sweep import add_worker_arguments, workers_of
 
 __all__ = ['add_parser', 'run']
 
@@ -26,6 +27,10 @@ def add_parser(subparsers) -> None:
                              "figures and recordings (created if missing)")
     parser.add_argument("--trials", type=int, default=20, metavar="N", help="closed-loop trials per task, >= 1")
     parser.add_argument("--seed", type=int, default=0, metavar="S", help="seeds the training and the trials")
+    parser.add_argument("--refine", action="store_true",
+                        help="refine every closed-loop trial's plan by trajectory optimization "
+                             "(docs/method.rst, Refinement by trajectory optimization) (default: off)")
+    add_worker_arguments(parser)  # the closed-loop trials only; the training stays in this process
     parser.set_defaults(func=run)
 
 
@@ -36,12 +41,16 @@ def run(args) -> int:
 
     require_at_least(args.trials, 1, "--trials")
     require_seed(args.seed)
+    workers = workers_of(args, args.trials)
     out = prepare_output(args.out, "--out", folder=True)
 
     def log(line):
         print(line, file=sys.stderr, flush=True)
 
-    results = run_paper(out, trials=args.trials, seed=args.seed, log=log)
+    options = {} if workers == 1 and args.scheduler is None else {"workers": workers, "scheduler": args.scheduler}
+    if args.refine:
+        options["refine"] = True
+    results = run_paper(out, trials=args.trials, seed=args.seed, log=log, **options)
     tasks = results["tasks"]
     print(f"transferring {tasks['transferring']['success_count']}/{args.trials}, filling and pouring "
           f"{tasks['filling_pouring']['success_count']}/{args.trials}, assembling: "

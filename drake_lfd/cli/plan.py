@@ -15,6 +15,7 @@ import numpy as np
 from drake_lfd.cli.argument_checks import library_help, prepare_output, require_seed
 from drake_lfd.io.strict_json import write_json
 from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, EXIT_NO_EXECUTABLE_PLAN, InputError
+from drake_lfd.core.fidelity import COST_MODES
 from drake_lfd.planning.planner import PLANNERS
 
 
@@ -29,6 +30,14 @@ def add_planning_arguments(parser) -> None:
     parser.add_argument("--planner", choices=PLANNERS, default="exact",
                         help="exact shortest-path planner, or the greedy walk on a Q-policy")
     parser.add_argument("--policy", metavar="POLICY", help="Q-policy file (needed by --planner q)")
+    parser.add_argument("--cost", choices=COST_MODES, default="fidelity",
+                        help="the action cost the planner minimises: the paper's Eq. 31 (total rotation "
+                             "distance), or fidelity, which also charges how far each demonstration is bent and "
+                             "stretched by its mapping (docs/method.rst, Shape fidelity)")
+    parser.add_argument("--refine", action="store_true",
+                        help="refine the executable plan by trajectory optimization in a tube around the "
+                             "mapped demonstrations (docs/method.rst, Refinement by trajectory optimization); "
+                             "when it fails the unrefined plan stands, with the reason (default: off)")
     parser.add_argument("--allow-policy-mismatch", action="store_true",
                         help="plan with a policy trained on other demonstrations than the library's "
                              "(default: refused; with this, a warning)")
@@ -100,10 +109,15 @@ def run(args) -> int:
     library.write_feature_caches()
     # The work cell the pipeline of ``simulate`` builds, so this plan is the one it runs.
     workcell = Workcell.of(trial)
+    checker = joint_path_checker(workcell, task.simulation)
     result = plan_task(trial, library_features(library), planner=args.planner, policy=policy, seed=args.seed,
-                       floor_z=workcell.planner_floor, checker=joint_path_checker(workcell, task.simulation))
+                       floor_z=workcell.planner_floor, checker=checker, cost=args.cost)
+    if args.refine and result.planned:
+        from drake_lfd.planning.refinement import refine_plan
+
+        result = refine_plan(result, checker)
     if args.json:
-        write_json(Path(args.json), plan_json(result))
+        write_json(Path(args.json), plan_json(result, cost=args.cost))
     if result.planned:
         chain = " + ".join(f"{s.demo} (con_{s.con_from}->con_{s.con_to})" for s in result.composition)
         print(f"{task.name}: planned with {chain}; total cost {result.total_cost:.3f}, "
@@ -112,6 +126,8 @@ def run(args) -> int:
               f"{np.degrees(result.max_correction_rotation_rad):.1f} deg")
         if result.fallback:
             print(f"note: the greedy Q-walk dead-ended; the {result.fallback} planner completed the plan")
+        if result.refinement is not None:
+            print(result.refinement.describe())
         return 0
     if result.status == "no_executable_plan":
         # One line per blocking segment (the library covers the task; the UR5e cannot

@@ -5,7 +5,9 @@ the library, refreshes the library's feature caches, runs the trials and writes 
 asked. With ``--json OUT.json`` each finished trial is also appended, as it finishes, to
 ``OUT.jsonl`` (:mod:`drake_lfd.io.json_lines`), so an interrupt (Ctrl-C, SIGTERM) or a
 late error keeps every trial that ran; the per-trial lines printed so far are printed
-then too. Not for: running or judging trials (:mod:`drake_lfd.experiments.simulation`).
+then too. With ``--workers N`` (default: every core) or ``--scheduler`` the trials run on
+worker processes (:mod:`drake_lfd.experiments.parallel_trials`), with the same results in
+trial order. Not for: running or judging trials (:mod:`drake_lfd.experiments.simulation`).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from drake_lfd.io.json_lines import JsonLinesFile, json_lines_path_for
 from drake_lfd.io.strict_json import write_json
 from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, EXIT_NO_EXECUTABLE_PLAN, EXIT_OK, InputError
 from drake_lfd.cli.plan import add_planning_arguments, load_policy_for
+from drake_lfd.cli.sweep import add_worker_arguments, workers_of
 
 
 __all__ = ["add_parser", "run"]
@@ -47,6 +50,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--figures", metavar="DIR",
                         help="write figures of the first trial that ran into DIR (created if missing): "
                              "SE(3) plan, joints, distance to shells")
+    add_worker_arguments(parser)
     parser.set_defaults(func=run)
 
 
@@ -64,6 +68,10 @@ def run(args) -> int:
         require_meshcat("--html")
     if args.meshcat:
         require_meshcat("--meshcat")
+        if args.scheduler or (args.workers or 1) > 1:
+            raise InputError("shows the trials one after another in one viewer: it needs --workers 1",
+                             field="--meshcat")
+    workers = 1 if args.meshcat else workers_of(args, args.trials)
     prepare_output(args.json, "--json")
     prepare_output(args.html, "--html")
     prepare_output(args.figures, "--figures", folder=True)
@@ -89,10 +97,21 @@ def run(args) -> int:
 
             meshcat = Meshcat()
             print(f"{task.name}: Meshcat viewer at {meshcat.web_url()} (open it in a browser)", flush=True)
-        outcomes, wall = run_trials(
-            task, library_features(library), trials=args.trials, seed=args.seed, planner=args.planner,
-            policy=policy, record_html=args.html, progress=progress, meshcat=meshcat,
-        )
+        if workers == 1 and args.scheduler is None:
+            outcomes, wall = run_trials(
+                task, library_features(library), trials=args.trials, seed=args.seed, planner=args.planner,
+                policy=policy, record_html=args.html, progress=progress, meshcat=meshcat, cost=args.cost,
+                refine=args.refine,
+            )
+        else:  # the same trials on worker processes or a cluster, delivered in trial order
+            from drake_lfd.experiments.parallel_trials import run_trials_on_workers, runner_spec
+
+            runner = runner_spec(args.task, library, policy_file=args.policy if args.planner == "q" else None,
+                                 planner=args.planner, cost=args.cost, refine=args.refine)
+            outcomes, wall = run_trials_on_workers(
+                runner, trials=args.trials, seed=args.seed, record_html=args.html, progress=progress,
+                workers=workers, scheduler=args.scheduler,
+            )
         bar.close()
     except BaseException:
         # Interrupted (or failed) part-way: say what finished and where it is kept.

@@ -8,6 +8,8 @@ planner calls it (see docs/method.rst, "Similarity"):
   task delta and a demo delta;
 * :func:`pair_costs`: the pair's cost, ``alpha`` where the pair is similar
   (``alpha <= d_alpha`` and ``beta >= d_beta``) and ``inf`` where it is not;
+  :func:`similar_pair_costs` is that test on given ``alpha`` and ``beta`` (the
+  shape-fidelity cost of ``fidelity.py`` adds its terms to it);
 * :func:`allocation_step`, :func:`allocation_table`, :func:`allocation_backtrack`: the
   dynamic programme for the least-total-alpha order-preserving allocation
   ``i_1 < i_2 < ... < i_p`` (that total is the action's cost, Eq. 31).
@@ -35,6 +37,7 @@ __all__ = [
     "translation_cosine",
     "alpha_beta_matrices",
     "pair_costs",
+    "similar_pair_costs",
     "allocation_step",
     "allocation_table",
     "allocation_backtrack",
@@ -213,6 +216,14 @@ def pair_costs(
     """
     alpha, beta = alpha_beta_matrices(task_rotations, task_translations, demo_rotations,
                                       demo_translations, tolerances.min_translation_m)
+    return similar_pair_costs(alpha, beta, tolerances)
+
+
+def similar_pair_costs(alpha: NDArray, beta: NDArray, tolerances: Tolerances = Tolerances()) -> NDArray[np.float64]:
+    """The similarity test (Eq. 21) on :func:`alpha_beta_matrices`' output: ``alpha``
+    where ``alpha <= d_alpha`` and ``beta >= d_beta``, inf elsewhere (written into
+    ``alpha``, which is returned). :func:`pair_costs` and the fidelity cost
+    (``fidelity.py``, which also needs ``beta``) share it."""
     similar = alpha <= tolerances.d_alpha
     similar &= beta >= tolerances.d_beta
     alpha[~similar] = np.inf

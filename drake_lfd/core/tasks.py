@@ -47,6 +47,7 @@ __all__ = [
     "angle_grid",
     "angle_candidates",
     "draw_trial",
+    "stops_of",
 ]
 
 DEFAULT_ANGLE_GRID_DEG = 15.0
@@ -143,6 +144,9 @@ class CriticalConfiguration:
         The variable each coordinate names, or None.
     euler_zyx_lower, euler_zyx_upper : array, shape (3,)
         [yaw, pitch, roll] bounds (equal for a fixed angle), radians.
+    stop : bool or None
+        Whether the tool comes to rest here; None: the default (at the first and the
+        last configuration only; see :func:`stops_of`).
     """
 
     p_lower: np.ndarray
@@ -150,6 +154,7 @@ class CriticalConfiguration:
     p_variables: tuple
     euler_zyx_lower: np.ndarray
     euler_zyx_upper: np.ndarray
+    stop: bool | None = None
 
     def __post_init__(self):
         for name in ("p_lower", "p_upper", "euler_zyx_lower", "euler_zyx_upper"):
@@ -179,6 +184,9 @@ class Task:
     # The tool's shapes on tool0 (tuple of core.tool.ToolShape); None: the default
     # sized from X_tool0_E (core.tool.default_tool), () for no tool geometry.
     tool: tuple | None = None
+    # The task file's ``timing:`` block, checked: a core.timing.TimingLimits (None: the
+    # defaults).
+    timing: object = None
 
     def __len__(self):
         return len(self.critical_configurations)
@@ -196,12 +204,15 @@ class ConcreteCriticalConfiguration:
         [yaw, pitch, roll] bounds in radians; equal where the angle is fixed.
     angle_grid_deg : float
         Grid step for the bounded angles (:func:`angle_candidates`).
+    stop : bool or None
+        As :attr:`CriticalConfiguration.stop`.
     """
 
     p: np.ndarray
     euler_zyx_lower: np.ndarray
     euler_zyx_upper: np.ndarray
     angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
+    stop: bool | None = None
 
     def __post_init__(self):
         for name in ("p", "euler_zyx_lower", "euler_zyx_upper"):
@@ -243,6 +254,7 @@ class ConcreteTask:
     variable_values: dict = dataclasses.field(default_factory=dict)  # name -> drawn value
     file: str | None = None
     tool: tuple | None = None  # as Task.tool
+    timing: object = None  # as Task.timing
 
     def __post_init__(self):
         object.__setattr__(self, "critical_configurations", tuple(self.critical_configurations))
@@ -277,6 +289,14 @@ class ConcreteTask:
             ),
             **kwargs,
         )
+
+
+def stops_of(task) -> tuple[bool, ...]:
+    """Where the tool comes to rest, one flag per critical configuration: each one's
+    ``stop`` where it says, else True at the first and the last and False between."""
+    cons = task.critical_configurations
+    last = len(cons) - 1
+    return tuple(bool(con.stop) if con.stop is not None else i in (0, last) for i, con in enumerate(cons))
 
 
 # ------------------------------------------------------------------------------ angles
@@ -375,6 +395,7 @@ def draw_trial(task, seed):
                 euler_zyx_lower=con.euler_zyx_lower,
                 euler_zyx_upper=con.euler_zyx_upper,
                 angle_grid_deg=task.angle_grid_deg,
+                stop=con.stop,
             )
         )
     return ConcreteTask(
@@ -389,4 +410,5 @@ def draw_trial(task, seed):
         variable_values=values,
         file=task.file,
         tool=task.tool,
+        timing=task.timing,
     )

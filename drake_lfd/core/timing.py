@@ -1,4 +1,15 @@
-"""The timing law: from an SE(3) plan (a pose sequence) to a timed end-effector trajectory.
+"""Timing of a plan: the UR5e's motion limits, and the geometric pass over an SE(3) plan.
+
+:class:`TimingLimits` holds the limits a plan's timing keeps to (a task file's
+``timing:`` block): the executed timing is the time-optimal parametrization of the
+plan's checked joint path under them (:mod:`drake_lfd.robot.path_timing`, Drake's
+``Toppra``). :func:`time_plan` below is the *geometric* pass that comes first: it lays
+the SE(3) plan out in time slowly and at rest at each critical configuration, so the
+plan-time joint check (:mod:`drake_lfd.robot.joint_path`) can follow it with the
+controller's law and record the joint path the arm will take; without that check (a
+plan made with ``joint_check`` off) it is also the executed timing.
+
+The geometric pass:
 
 A plan is a sequence of poses X_WE through which the critical configurations pass at
 known indices. Spans between consecutive critical configurations were mapped from
@@ -17,6 +28,7 @@ This module does not choose or map demonstrations (planning and mapping modules 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -36,6 +48,7 @@ from drake_lfd.core.dual_quaternion import (
 )
 
 __all__ = [
+    "TimingLimits",
     "DEFAULT_MAX_SPEED_M_S",
     "DEFAULT_MAX_ANGULAR_SPEED_RAD_S",
     "MIN_SPAN_DURATION_S",
@@ -50,6 +63,49 @@ DEFAULT_MAX_ANGULAR_SPEED_RAD_S = 1.0
 MIN_SPAN_DURATION_S = 0.2
 # Peak of d/dtau of the minimum-jerk profile 10 tau^3 - 15 tau^4 + 6 tau^5.
 _MINIMUM_JERK_PEAK_RATE = 1.875
+
+
+@dataclass(frozen=True)
+class TimingLimits:
+    """What a plan's timing keeps to (a task file's ``timing:`` block; docs/task_files.rst).
+
+    Attributes
+    ----------
+    joint_speed_rad_s : float
+        Every joint's speed limit: pi (180 deg/s), the UR5e datasheet's figure for all
+        six joints.
+    joint_acceleration_rad_s2 : float
+        Every joint's acceleration limit: 8 rad/s^2. Universal Robots publish none (the
+        joints are limited by torque); their own MoveIt configuration for the e-Series
+        picks 5-10 rad/s^2 as conservative values for time parametrization. At 8 rad/s^2
+        the shoulder, with the arm outstretched (about 3 kg m^2), needs about 24 N m on top
+        of gravity, far below the 150 N m its joint size can give.
+    tool_speed_m_s : float
+        Limit on the speed of E: 1.5 m/s, UR's default safety-system tool speed limit.
+    tool_acceleration_m_s2 : float or None
+        Optional limit on the linear acceleration of E (a task carrying water), applied
+        per world axis as ``a / sqrt(3)`` so the magnitude never exceeds it.
+    limit_fraction : float
+        The fraction of the joint and tool limits the plan uses (0.9); the rest is the
+        controller's room to correct tracking errors without exceeding the limits.
+    """
+
+    joint_speed_rad_s: float = math.pi
+    joint_acceleration_rad_s2: float = 8.0
+    tool_speed_m_s: float = 1.5
+    tool_acceleration_m_s2: float | None = None
+    limit_fraction: float = 0.9
+
+    def __post_init__(self):
+        for name in ("joint_speed_rad_s", "joint_acceleration_rad_s2", "tool_speed_m_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be finite and > 0, got {value}")
+        a = self.tool_acceleration_m_s2
+        if a is not None and not (math.isfinite(a) and a > 0.0):
+            raise ValueError(f"tool_acceleration_m_s2 must be finite and > 0, got {a}")
+        if not 0.0 < self.limit_fraction <= 1.0:
+            raise ValueError(f"limit_fraction must be in (0, 1], got {self.limit_fraction}")
 
 
 @dataclass(frozen=True)

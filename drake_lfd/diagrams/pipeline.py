@@ -124,6 +124,12 @@ class Pipeline(Diagram):
         Plan only executable compositions (the plan-time joint-space check,
         :func:`joint_path_checker`); False plans in SE(3) alone, as the paper does (for
         comparisons).
+    cost : {"paper", "fidelity"}
+        The planner's action cost (:class:`~drake_lfd.systems.planner.PlannerSystem`):
+        Eq. 31, or with the shape-fidelity terms (docs/method.rst, Shape fidelity).
+    refine : bool
+        Refine each executable plan by trajectory optimization (the planner system's
+        ``refine``; needs ``joint_check``).
 
     Attributes
     ----------
@@ -152,6 +158,8 @@ class Pipeline(Diagram):
         meshcat: Meshcat | None = None,
         accept_demonstrations: bool = False,
         joint_check: bool = True,
+        cost: str = "paper",
+        refine: bool = False,
     ):
         super().__init__()
         config = (PipelineConfig() if config is None else config).checked()
@@ -178,7 +186,7 @@ class Pipeline(Diagram):
             self.planner = builder.AddNamedSystem("planner", PlannerSystem(
                 planner=planner, policy=policy, start_time_s=config.settle_s, floor_z=floor_z,
                 checker=joint_path_checker(workcell, config) if joint_check else None,
-                check_period=config.planner.check_period))
+                check_period=config.planner.check_period, cost=cost, refine=refine))
             plan_port = self.planner.plan_output_port
         else:
             constant = builder.AddNamedSystem("given_plan", ConstantValueSource(

@@ -6,7 +6,8 @@ Steps (each printed as it runs):
 1. library ``paper5``; its features beside Table 5;
 2. Q-learning on 20 random tasks x 100 episodes (Section 6.2, Fig. 7);
 3. transferring (Table 7) and filling-and-pouring (Table 8): N closed-loop trials each
-   with the trained policy (planner ``q``);
+   with the trained policy (planner ``q``); every plan here uses the paper's action cost,
+   Eq. 31 (cost ``"paper"``, not the shape-fidelity cost of ``core/fidelity.py``);
 4. assembling (Table 9) with ``paper5``: expected a demonstration request for
    con_2 -> con_3;
 5. library ``paper6`` (adds ``span``), warm-start retraining on the assembling task with
@@ -43,6 +44,7 @@ from drake_lfd.io.plan_json import uncovered_json
 from drake_lfd.planning.planner import build_problem, plan_task
 from drake_lfd.io.policy_files import save_policy
 from drake_lfd.planning.q_learning import episodes_to_steady
+from drake_lfd.experiments.parallel_trials import run_trials_on_workers, runner_spec
 from drake_lfd.experiments.rederive import rederive_run
 from drake_lfd.experiments.simulation import (
     composition_counts,
@@ -85,9 +87,12 @@ def _reasons(outcome) -> str:
     return "; ".join(shorten_reason(reason) for reason in outcome.failures)
 
 
-def _task_results(name, task, features, policy, trials, seed, out, log, finished=None, record=True):
+def _task_results(name, task, features, policy, trials, seed, out, log, finished=None, record=True,
+                  workers=1, scheduler=None, library=None, policy_file=None, refine=False):
     """Runs the trials of one task; figures and (``record``) a recording of the first
-    trial; each finished trial is appended to ``finished`` (a JsonLinesFile)."""
+    trial; each finished trial is appended to ``finished`` (a JsonLinesFile). With more
+    than one worker (or a scheduler) the trials run on worker processes, which load the
+    task file, ``library`` (opened) and the saved ``policy_file`` themselves."""
     recording = out / f"{name}.html"
 
     def progress(done, total, outcome):
@@ -95,10 +100,17 @@ def _task_results(name, task, features, policy, trials, seed, out, log, finished
             finished.append(trial_record(task, outcome))
         log(f"  {name} trial {done}/{total}: {'success' if outcome.success else 'FAILED ' + _reasons(outcome)}")
 
-    outcomes, wall = run_trials(
-        task, features, trials=trials, seed=seed, planner="q", policy=policy,
-        record_html=recording if record else None, progress=progress,
-    )
+    if workers == 1 and scheduler is None:
+        outcomes, wall = run_trials(
+            task, features, trials=trials, seed=seed, planner="q", policy=policy, cost="paper", refine=refine,
+            record_html=recording if record else None, progress=progress,
+        )
+    else:
+        outcomes, wall = run_trials_on_workers(
+            runner_spec(task.file, library, policy_file=policy_file, planner="q", refine=refine), trials=trials,
+            seed=seed,
+            record_html=recording if record else None, progress=progress, workers=workers, scheduler=scheduler,
+        )
     first = next((o for o in outcomes if o.run is not None), None)
     figures = write_trial_figures(task, first, out, name) if first is not None else {}
     rederived = 0
@@ -130,15 +142,22 @@ def _task_results(name, task, features, policy, trials, seed, out, log, finished
     }
 
 
-def run_paper(out: Path, *, trials: int = 20, seed: int = 0, log: Callable[[str], None] = print) -> dict:
+def run_paper(out: Path, *, trials: int = 20, seed: int = 0, log: Callable[[str], None] = print,
+              workers: int = 1, scheduler: str | None = None, refine: bool = False) -> dict:
     """Runs Section 6 and writes everything into ``out``; returns the results document.
-    Every closed-loop trial is appended to ``out / "trials.jsonl"`` as it finishes."""
+    Every closed-loop trial is appended to ``out / "trials.jsonl"`` as it finishes. The
+    closed-loop trials run on ``workers`` processes (or the workers of ``scheduler``;
+    :mod:`~drake_lfd.experiments.parallel_trials`), with the same results; the training
+    runs here. ``refine`` refines every closed-loop trial's plan by trajectory
+    optimization (``planning/refinement.py``)."""
     out.mkdir(parents=True, exist_ok=True)
     with JsonLinesFile(out / "trials.jsonl") as finished:
-        return _run_paper(out, trials=trials, seed=seed, log=log, finished=finished)
+        return _run_paper(out, trials=trials, seed=seed, log=log, finished=finished, workers=workers,
+                          scheduler=scheduler, refine=refine)
 
 
-def _run_paper(out: Path, *, trials: int, seed: int, log: Callable[[str], None], finished) -> dict:
+def _run_paper(out: Path, *, trials: int, seed: int, log: Callable[[str], None], finished, workers: int,
+               scheduler: str | None, refine: bool = False) -> dict:
     start = time.perf_counter()
     no_meshcat = not drake_allows("meshcat")
     if no_meshcat:
@@ -166,18 +185,22 @@ def _run_paper(out: Path, *, trials: int, seed: int, log: Callable[[str], None],
     for name in ("transferring", "filling_pouring"):
         log(f"{name}: {trials} closed-loop trials with the trained policy")
         results["tasks"][name] = _task_results(name, tasks[name], features5, training.policy, trials, seed, out, log,
-                                               finished, record=not no_meshcat)
+                                               finished, record=not no_meshcat, workers=workers, scheduler=scheduler,
+                                               library=paper5, policy_file=out / "policy_paper5.json",
+                                               refine=refine)
 
     log("assembling with paper5")
     assembling = tasks["assembling"]
-    first_try = plan_task(draw_trial(assembling, seed), features5, planner="q", policy=training.policy)
+    first_try = plan_task(draw_trial(assembling, seed), features5, planner="q", policy=training.policy,
+                          cost="paper")
     assembling_results = {"initial_status": first_try.status, "uncovered": uncovered_json(first_try)}
     for segment in first_try.uncovered:
         log(f"  demonstration requested for con_{segment.con_from} -> con_{segment.con_to}: "
             f"{np.degrees(segment.angle_rad):.0f} deg about {np.round(segment.axis, 2).tolist()}")
 
     log("library paper6 (adds span): warm-start retraining on the assembling task and the random tasks")
-    features6 = library_features(Library.open("paper6"))
+    paper6 = Library.open("paper6")
+    features6 = library_features(paper6)
     retraining = train_on_random_tasks(
         features6, num_tasks=20, episodes=100, seed=seed, warm_start=training.policy,
         extra_problems=[build_problem(draw_trial(assembling, seed), features6)],
@@ -193,7 +216,8 @@ def _run_paper(out: Path, *, trials: int, seed: int, log: Callable[[str], None],
     log(f"assembling: {trials} closed-loop trials with the retrained policy")
     assembling_results["after_new_demo"] = _task_results(
         "assembling", assembling, features6, retraining.policy, trials, seed, out, log, finished,
-        record=not no_meshcat)
+        record=not no_meshcat, workers=workers, scheduler=scheduler, library=paper6,
+        policy_file=out / "policy_paper6.json", refine=refine)
     results["tasks"]["assembling"] = assembling_results
     results["table5"] = [
         {"demo": row.demo, "sample": row.sample, "alpha": float(row.alpha)} for row in table5

@@ -82,11 +82,12 @@ class TrialRunner:
 
     def __init__(self, task: Task, features: Mapping[str, Feature], *, planner: str = "exact",
                  policy: QPolicy | None = None, with_table: bool = True, config: PipelineConfig | None = None,
-                 joint_check: bool = True, meshcat: Meshcat | None = None):
-        check_problem_size(task, features)  # a problem too large is refused before the pipeline is built
+                 joint_check: bool = True, meshcat: Meshcat | None = None, cost: str = "paper",
+                 refine: bool = False):
+        check_problem_size(task, features, cost=cost)  # a problem too large is refused before the pipeline is built
         self.task = task
         self._options = dict(features=features, planner=planner, policy=policy, with_table=with_table,
-                             joint_check=joint_check,
+                             joint_check=joint_check, cost=cost, refine=refine,
                              config=config if config is not None else task.simulation)
         self._recording_runner = None
         if meshcat is not None:
@@ -137,10 +138,14 @@ def run_trial(
     policy: QPolicy | None = None,
     record_html: str | Path | None = None,
     with_table: bool = True,
+    cost: str = "paper",
+    refine: bool = False,
 ) -> TrialOutcome:
     """Plans, simulates and judges one concrete trial of ``task`` (a one-off
-    :class:`TrialRunner`; use one runner for many trials)."""
-    runner = TrialRunner(task, features, planner=planner, policy=policy, with_table=with_table)
+    :class:`TrialRunner`; use one runner for many trials; ``refine``: refine each plan by
+    trajectory optimization, ``planning/refinement.py``)."""
+    runner = TrialRunner(task, features, planner=planner, policy=policy, with_table=with_table, cost=cost,
+                         refine=refine)
     return runner.run(trial=trial, seed=seed, record_html=record_html)
 
 
@@ -155,12 +160,18 @@ def run_trials(
     record_html: str | Path | None = None,
     progress: Callable[[int, int, TrialOutcome], None] | None = None,
     meshcat: Meshcat | None = None,
+    cost: str = "paper",
+    refine: bool = False,
 ) -> tuple[list[TrialOutcome], float]:
     """Runs ``trials`` trials (seeds ``seed``, ``seed + 1``, ...) on one pipeline Diagram;
     the first one that plans is recorded to ``record_html``; with ``meshcat``, every trial
-    is shown there as it runs. Returns the outcomes and the wall time (planning included)."""
+    is shown there as it runs; ``cost`` is the planner's action cost (``"paper"``: Eq. 31;
+    ``"fidelity"``: with the shape-fidelity terms); ``refine`` refines each plan by
+    trajectory optimization (``planning/refinement.py``). Returns the outcomes and the
+    wall time (planning included)."""
     start = time.perf_counter()
-    runner = TrialRunner(task, features, planner=planner, policy=policy, meshcat=meshcat)
+    runner = TrialRunner(task, features, planner=planner, policy=policy, meshcat=meshcat, cost=cost,
+                         refine=refine)
     outcomes = []
     recorded = record_html is None
     for i in range(trials):
@@ -184,6 +195,8 @@ def trial_json(outcome: TrialOutcome) -> dict:
         "critical_configurations": critical_configurations_json(outcome.plan) if outcome.plan else [],
         "composition": composition_json(outcome.plan) if outcome.plan else [],
     }
+    if outcome.plan is not None and outcome.plan.refinement is not None:
+        entry["refinement"] = outcome.plan.refinement.to_json()
     if outcome.run is not None:
         entry.update(outcome.run.trial_fields())
         entry["min_distance_pair"] = outcome.run.min_distance_pair

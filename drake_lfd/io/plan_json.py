@@ -57,8 +57,11 @@ def uncovered_json(result: PlanResult) -> list[dict]:
     ]
 
 
-def plan_json(result: PlanResult) -> dict:
-    """The ``plan --json`` document. Extra optional field: ``q_planner`` (Q runs only)."""
+def plan_json(result: PlanResult, cost: str = "paper") -> dict:
+    """The ``plan --json`` document; ``cost`` is the action cost it was planned with
+    (``plan_task``'s ``cost``, the ``"cost"`` field). Extra optional fields: ``q_planner``
+    (Q runs only) and ``refinement`` (``plan --refine`` only: the trajectory
+    optimization's report, ``planning/refinement.py``)."""
     poses = []
     critical_indices = []
     if result.timed is not None:
@@ -74,6 +77,7 @@ def plan_json(result: PlanResult) -> dict:
         "X_WB": pose_json_from_rigid_transform(result.task.X_WB),
         "X_tool0_E": pose_json_from_rigid_transform(result.task.X_tool0_E),
         "planner": result.planner,
+        "cost": cost,
         "critical_configurations": critical_configurations_json(result),
         "composition": composition_json(result),
         "total_cost": float(result.total_cost) if result.planned else None,
@@ -84,6 +88,7 @@ def plan_json(result: PlanResult) -> dict:
             "rotation_rad": float(result.max_correction_rotation_rad),
         },
         "joint_trajectory": joint_trajectory_json(result),
+        "timing": result.timing if result.planned else None,
         "infeasible": infeasible_json(result),
         "uncovered": uncovered_json(result),
     }
@@ -93,13 +98,15 @@ def plan_json(result: PlanResult) -> dict:
             "fallback": result.fallback,
             "refine_episodes": result.refine_episodes,
         }
+    if result.refinement is not None:
+        document["refinement"] = result.refinement.to_json()
     return document
 
 
 def joint_trajectory_json(result: PlanResult) -> dict:
     """``{"t": [...], "q": [[q1..q6], ...]}``: the joint path the plan-time check
-    produced (the controller's law at its period, plan time from 0), the motion
-    ``simulate`` commands; empty lists without one."""
+    produced, with the plan's executed timing, at the controller's period from plan time
+    0: the motion ``simulate`` commands; empty lists without one."""
     path = result.joint_path if result.planned else None
     if path is None:
         return {"t": [], "q": []}

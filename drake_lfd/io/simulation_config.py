@@ -108,7 +108,7 @@ class ControllerConfig:
     method: str = "drake"
     time_step: float = 0.01
     position_gain: float = 20.0
-    velocity_limit_fraction: float = 0.7
+    velocity_limit_fraction: float = 0.97
 
 
 @dataclasses.dataclass

@@ -31,6 +31,16 @@ Example, the paper's Table 8 (filling and pouring)::
     tool:                 # shapes fixed to tool0; absent: a cylinder from the flange to E
       - {name: holder, cylinder: {radius: 0.03, length: 0.15}, p: [0, 0, 0.075]}
       - {name: cup, box: [0.08, 0.08, 0.1], p: [0, 0, 0.2]}
+    timing:               # the limits of the time-optimal timing; these are the defaults
+      joint_speed_rad_s: 3.14159        # UR5e datasheet: 180 deg/s, every joint
+      joint_acceleration_rad_s2: 8.0
+      tool_speed_m_s: 1.5               # UR's default safety limit
+      # tool_acceleration_m_s2: 2.0     # optional (carrying water)
+      limit_fraction: 0.9               # the share the plan uses; the rest is the controller's
+
+A critical configuration may add ``stop: true`` (the tool comes to rest there) or
+``stop: false``; by default it stops at the first and the last only (and wherever the
+path has a corner).
 
 Values:
 
@@ -79,6 +89,7 @@ from drake_lfd.core.tasks import (
     Task,
     rigid_transform_from_euler_zyx,
 )
+from drake_lfd.core.timing import TimingLimits
 from drake_lfd.core.tool import ToolShape
 
 # The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
@@ -140,6 +151,8 @@ class CriticalConfigurationSpec:
         default_factory=list,
         metadata={"required": True, "expected": "an angle or a [lower, upper] list of angles"},
     )
+    # Whether the tool comes to rest here (absent: only at the first and the last).
+    stop: Optional[bool] = dataclasses.field(default=None, metadata={"expected": "true or false"})
 
 
 @dataclasses.dataclass
@@ -185,6 +198,19 @@ class PathConstraintSpec:
 
 
 @dataclasses.dataclass
+class TimingSpec:
+    """The ``timing:`` block: the limits the plan's time-optimal timing keeps to
+    (:class:`~drake_lfd.core.timing.TimingLimits`, whose defaults these are)."""
+
+    joint_speed_rad_s: float = TimingLimits.joint_speed_rad_s
+    joint_acceleration_rad_s2: float = TimingLimits.joint_acceleration_rad_s2
+    tool_speed_m_s: float = TimingLimits.tool_speed_m_s
+    tool_acceleration_m_s2: Optional[float] = dataclasses.field(
+        default=None, metadata={"expected": "a number (m/s^2), or absent for none"})
+    limit_fraction: float = TimingLimits.limit_fraction
+
+
+@dataclasses.dataclass
 class TaskSpec:
     """The whole task file (see the module docstring)."""
 
@@ -199,6 +225,7 @@ class TaskSpec:
     safety_shells: list[BoxSpec] = dataclasses.field(default_factory=list)
     path_constraints: list[PathConstraintSpec] = dataclasses.field(default_factory=list)
     simulation: PipelineConfig = dataclasses.field(default_factory=PipelineConfig)
+    timing: TimingSpec = dataclasses.field(default_factory=TimingSpec)
     # Absent (None): the default tool sized from X_tool0_E; [] for no tool geometry.
     tool: Optional[list[ToolShapeSpec]] = dataclasses.field(
         default=None, metadata={"expected": "a list of tool shapes ([] for none)"})
@@ -386,6 +413,7 @@ def task_from_spec(spec, *, file=None):
                 p_variables=p_variables,
                 euler_zyx_lower=euler_lower,
                 euler_zyx_upper=euler_upper,
+                stop=con_spec.stop,
             )
         )
 
@@ -452,7 +480,22 @@ def task_from_spec(spec, *, file=None):
         file=None if file is None else str(file),
         simulation=spec.simulation.checked(file=file),
         tool=_tool(spec.tool, file=file),
+        timing=_timing(spec.timing, file=file),
     )
+
+
+def _timing(spec, *, file):
+    """The checked ``timing:`` block as :class:`~drake_lfd.core.timing.TimingLimits`."""
+    values = {}
+    for name in ("joint_speed_rad_s", "joint_acceleration_rad_s2", "tool_speed_m_s"):
+        values[name] = _positive(getattr(spec, name), file=file, field=f"timing.{name}")
+    if spec.tool_acceleration_m_s2 is not None:
+        values["tool_acceleration_m_s2"] = _positive(spec.tool_acceleration_m_s2, file=file,
+                                                     field="timing.tool_acceleration_m_s2")
+    fraction = finite(spec.limit_fraction, file=file, field="timing.limit_fraction")
+    if not 0.0 < fraction <= 1.0:
+        raise InputError(f"must be in (0, 1], got {fraction:g}", file=file, field="timing.limit_fraction")
+    return TimingLimits(limit_fraction=fraction, **values)
 
 
 def load_task(path):

@@ -30,15 +30,18 @@ from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.executable import InfeasibleSegment, search_executable
 from drake_lfd.planning.problem_size import check_problem_size
 from drake_lfd.core.features import Feature
+from drake_lfd.core.fidelity import FidelityWeights, check_cost_mode
 from drake_lfd.core.mapping import map_segment
 from drake_lfd.planning.q_learning import DEFAULT_REFINE_EPISODES, QPolicy, plan_q
 from drake_lfd.core.similarity import Tolerances
-from drake_lfd.core.tasks import ConcreteTask, angle_candidates
+from drake_lfd.core.tasks import ConcreteTask, angle_candidates, stops_of
 from drake_lfd.robot.joint_path import JointPath, JointPathChecker, ur5e_reach_m
+from drake_lfd.robot.path_timing import TimingError, retime_plan
 from drake_lfd.core.timing import (
     DEFAULT_MAX_ANGULAR_SPEED_RAD_S,
     DEFAULT_MAX_SPEED_M_S,
     TimedPlan,
+    TimingLimits,
     time_plan,
 )
 
@@ -119,6 +122,8 @@ class PlanResult:
     joint_path: JointPath | None = None
     infeasible: tuple[InfeasibleSegment, ...] = ()
     search_rounds: int = 0
+    refinement: object | None = None  # planning/refinement.RefinementReport, with --refine
+    timing: str = "geometric"  # "time_optimal" when timed along the checked joint path
 
     @property
     def planned(self) -> bool:
@@ -140,10 +145,15 @@ def build_problem(
     features: Mapping[str, Feature],
     tolerances: Tolerances = Tolerances(),
     max_span: int | None = None,
+    cost: str = "paper",
+    fidelity_weights: FidelityWeights = FidelityWeights(),
 ) -> CompositionProblem:
-    check_problem_size(task, features, max_span)  # before anything is allocated
+    """The :class:`CompositionProblem` of a concrete task, in cost mode ``cost``
+    (``"paper"``: Eq. 31; ``"fidelity"``: plus the shape-fidelity terms)."""
+    check_cost_mode(cost)
+    check_problem_size(task, features, max_span, cost)  # before anything is allocated
     _, poses = task_candidates(task)
-    return CompositionProblem(poses, list(features.values()), tolerances, max_span)
+    return CompositionProblem(poses, list(features.values()), tolerances, max_span, cost, fidelity_weights)
 
 
 def uncovered_segments(problem: CompositionProblem) -> list[UncoveredSegment]:
@@ -375,13 +385,27 @@ def plan_task(
     floor_z: float | None = None,
     clearance_points_E: np.ndarray | None = None,
     checker: JointPathChecker | None = None,
+    timing: TimingLimits | None = None,
+    cost: str = "paper",
+    fidelity_weights: FidelityWeights = FidelityWeights(),
 ) -> PlanResult:
     """Plans one concrete task with the named planner (``exact`` or ``q``; the Q-planner
     first refines on the task for ``refine_episodes`` episodes, seeded by ``seed``).
 
+    ``cost`` is the action cost both planners minimise: ``"paper"``, Eq. 31's total
+    alpha (the shape-fidelity terms only break its ties), or ``"fidelity"``, alpha plus
+    the shape-fidelity terms weighted by ``fidelity_weights`` (``core/fidelity.py``,
+    docs/method.rst, Shape fidelity). The plan's ``total_cost`` and step costs are the
+    chosen allocations' total alpha (Eq. 31) in both modes.
+
     With a ``checker`` (the task's scene and the controller's law), only executable
     compositions are returned (``planning/executable.py``): a critical configuration
     out of reach, or every covering composition blocked, gives ``no_executable_plan``.
+    The executable plan is then timed time-optimally along its checked joint path under
+    ``timing`` (default: the task's ``timing`` block, else :class:`TimingLimits`'s
+    defaults; ``robot/path_timing.py``), stopping where the task's critical
+    configurations say ``stop`` (the first and the last by default) and at corners.
+    Without a checker the plan keeps the geometric pass's timing (``core/timing.py``).
 
     Each span's free twist keeps the tool path clear of the task's obstacles and shells
     and above ``floor_z``; ``clearance_points_E`` (k, 3) are the points fixed in E that
@@ -391,7 +415,8 @@ def plan_task(
         raise ValueError(f"planner must be one of {PLANNERS}, got {planner!r}")
     if planner == "q" and policy is None:
         raise ValueError("the q planner needs a policy")
-    check_problem_size(task, features, max_span)  # before anything is allocated
+    check_cost_mode(cost)
+    check_problem_size(task, features, max_span, cost)  # before anything is allocated
     angles, poses = task_candidates(task)
     nominal = np.array([a[len(a) // 2] for a in angles])
     refined = refine_episodes if planner == "q" else 0
@@ -400,7 +425,7 @@ def plan_task(
         if unreachable:
             return PlanResult("no_executable_plan", planner, task, nominal, infeasible=tuple(unreachable),
                               refine_episodes=refined)
-    problem = CompositionProblem(poses, list(features.values()), tolerances, max_span)
+    problem = CompositionProblem(poses, list(features.values()), tolerances, max_span, cost, fidelity_weights)
     q_outcome: dict = {}
 
     def solve(problem: CompositionProblem):
@@ -470,11 +495,21 @@ def plan_task(
             refine_episodes=refined,
         )
     timed, chosen, costs, max_position, max_rotation = composed
+    timing_kind = "geometric"
+    if joint_path is not None:
+        # The executed timing: time-optimal along the checked joint path (if Toppra finds
+        # none, the checked geometric pass stands: slower, at rest at every configuration).
+        limits = timing if timing is not None else (task.timing or TimingLimits())
+        try:
+            timed, joint_path, _ = retime_plan(timed, joint_path, stops_of(task), checker.kinematics, limits)
+            timing_kind = "time_optimal"
+        except TimingError:
+            pass
     composition = tuple(
         ComposedStep(names[s.demo], s.j + 1, s.k + 1, cost) for s, cost in zip(steps, costs)
     )
     return PlanResult(
         "planned", planner, task, chosen, composition, float(sum(costs)), timed,
         max_position, max_rotation, (), greedy_completed, fallback, refined,
-        joint_path=joint_path, infeasible=blocked, search_rounds=rounds,
+        joint_path=joint_path, infeasible=blocked, search_rounds=rounds, timing=timing_kind,
     )

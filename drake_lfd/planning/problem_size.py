@@ -37,6 +37,7 @@ __all__ = [
     "MAX_PLANNING_WORK",
     "ALLOCATION_STEPS_PER_PAIR_COST",
     "BYTES_PER_PAIR_COST",
+    "BYTES_PER_PAIR_COST_FIDELITY",
     "SUGGESTED_GRIDS_DEG",
     "ProblemSize",
     "candidate_counts",
@@ -61,6 +62,10 @@ ALLOCATION_STEPS_PER_PAIR_COST = 4
 #: Bytes per pair cost while one span end is computed: alpha and beta (float64) and two
 #: boolean masks and the allocation's work arrays (measured: 10.7 GiB peak for 5.2e8 pair costs).
 BYTES_PER_PAIR_COST = 22
+#: The same in the ``"fidelity"`` cost mode, which keeps each pair's first-pair terms and
+#: the fidelity terms' temporaries beside alpha and beta (measured: 1.66 GB against
+#: 0.70 GB peak for the same problem, baseline included).
+BYTES_PER_PAIR_COST_FIDELITY = 66
 #: Bytes per candidate pair for its relative pose and the intermediate broadcast.
 _BYTES_PER_CANDIDATE_PAIR = 200
 #: Grids :func:`check_problem_size` tries when it suggests a coarser ``angle_grid_deg``.
@@ -119,10 +124,10 @@ def candidate_counts(task, grid_deg: float | None = None) -> tuple[int, ...]:
 
 
 def estimate_problem_size(candidates: Sequence[int], demo_deltas: int, num_demos: int,
-                          max_span: int | None = None) -> ProblemSize:
+                          max_span: int | None = None, cost: str = "paper") -> ProblemSize:
     """The :class:`ProblemSize` of a composition problem with these candidate counts,
-    ``demo_deltas`` deltas over ``num_demos`` demonstrations and spans of at most
-    ``max_span`` (None: the whole task)."""
+    ``demo_deltas`` deltas over ``num_demos`` demonstrations, spans of at most
+    ``max_span`` (None: the whole task) and the cost mode ``cost``."""
     candidates = tuple(int(c) for c in candidates)
     n = len(candidates)
     span = max(n - 1, 1) if max_span is None else max(int(max_span), 1)
@@ -137,7 +142,8 @@ def estimate_problem_size(candidates: Sequence[int], demo_deltas: int, num_demos
         if window_pairs > peak_pairs:
             peak_pairs, worst_end = window_pairs, k
     demo_deltas = max(int(demo_deltas), 1)
-    peak_bytes = (peak_pairs * (demo_deltas * BYTES_PER_PAIR_COST + _BYTES_PER_CANDIDATE_PAIR)
+    per_pair = BYTES_PER_PAIR_COST_FIDELITY if cost == "fidelity" else BYTES_PER_PAIR_COST
+    peak_bytes = (peak_pairs * (demo_deltas * per_pair + _BYTES_PER_CANDIDATE_PAIR)
                   + pairs * max(int(num_demos), 1) * 8)
     work = (pairs + steps // ALLOCATION_STEPS_PER_PAIR_COST) * demo_deltas
     return ProblemSize(candidates, pairs, pairs * demo_deltas, work, peak_bytes, worst_end)
@@ -165,26 +171,26 @@ def _fits(size: ProblemSize) -> bool:
     return size.peak_bytes <= MAX_PLANNING_BYTES and size.work <= MAX_PLANNING_WORK
 
 
-def _suggested_grid(task, grid_deg, demo_deltas, num_demos, max_span) -> float | None:
+def _suggested_grid(task, grid_deg, demo_deltas, num_demos, max_span, cost) -> float | None:
     for grid in SUGGESTED_GRIDS_DEG:
         if grid <= grid_deg:
             continue
         counts = candidate_counts(task, grid)
         if max(counts) <= MAX_CANDIDATES_PER_CONFIGURATION and _fits(
-                estimate_problem_size(counts, demo_deltas, num_demos, max_span)):
+                estimate_problem_size(counts, demo_deltas, num_demos, max_span, cost)):
             return grid
     return None
 
 
-def _grid_advice(task, grid_deg, demo_deltas, num_demos, max_span) -> str:
-    suggestion = _suggested_grid(task, grid_deg, demo_deltas, num_demos, max_span)
+def _grid_advice(task, grid_deg, demo_deltas, num_demos, max_span, cost) -> str:
+    suggestion = _suggested_grid(task, grid_deg, demo_deltas, num_demos, max_span, cost)
     if suggestion is None:
         return "bound fewer angles, narrow their bounds or split the task"
     return f"use angle_grid_deg: {suggestion:g} or coarser, or bound fewer angles"
 
 
 def check_problem_size(task, features: Mapping[str, object] | Sequence[object],
-                       max_span: int | None = None) -> ProblemSize:
+                       max_span: int | None = None, cost: str = "paper") -> ProblemSize:
     """Refuses a planning problem too large to build, before anything is allocated.
 
     Parameters
@@ -195,6 +201,8 @@ def check_problem_size(task, features: Mapping[str, object] | Sequence[object],
         The library's features (their delta counts; ``len(feature)``).
     max_span : int or None
         Longest span an action may cover (None: the whole task).
+    cost : {"paper", "fidelity"}
+        The cost mode (fidelity needs about three times the memory per pair cost).
 
     Returns
     -------
@@ -228,7 +236,7 @@ def check_problem_size(task, features: Mapping[str, object] | Sequence[object],
         if max(turns) > 2 * math.pi + 1e-9:
             advice = "narrow the bounds: a full turn, [-pi, pi], covers every orientation"
         else:
-            advice = _grid_advice(task, grid, demo_deltas, num_demos, max_span)
+            advice = _grid_advice(task, grid, demo_deltas, num_demos, max_span, cost)
         raise InputError(
             f"con_{index + 1}: its bounded angles give {_count_text(count)} angle candidates on the "
             f"{grid:g} deg grid, more than the limit of {MAX_CANDIDATES_PER_CONFIGURATION:,} per "
@@ -236,7 +244,7 @@ def check_problem_size(task, features: Mapping[str, object] | Sequence[object],
             file=file, field=field,
         )
     counts = candidate_counts(task)
-    size = estimate_problem_size(counts, demo_deltas, num_demos, max_span)
+    size = estimate_problem_size(counts, demo_deltas, num_demos, max_span, cost)
     if _fits(size):
         return size
     grid = _grid_of(task, cons[0])
@@ -253,6 +261,6 @@ def check_problem_size(task, features: Mapping[str, object] | Sequence[object],
     raise InputError(
         f"the task {need}: {which} up to {largest:,} angle candidates each on the "
         f"{grid:g} deg grid, and every candidate pair is compared with the library's {demo_deltas:,} "
-        f"demonstration deltas; {_grid_advice(task, grid, demo_deltas, num_demos, max_span)}",
+        f"demonstration deltas; {_grid_advice(task, grid, demo_deltas, num_demos, max_span, cost)}",
         file=file, field="angle_grid_deg",
     )

@@ -9,12 +9,18 @@ ahead, so only those are planned again.
 
 - If the critical configuration the robot is heading to did not change (those already
   passed do not matter), the current span is finished as planned and the new plan
-  starts there: the tool is at rest at every critical configuration, so the join is
-  smooth (velocity zero on both sides).
+  starts there, from rest. Where the current plan stops at that configuration (the
+  task's ``stop``, a corner) the join is smooth, velocity zero on both sides; where it
+  passes it at speed, the commanded velocity drops to zero there in one step.
 - Otherwise the new plan starts from the pose the robot is commanded to at the moment
   of the change (a fixed configuration), through the changed critical configurations
-  ahead. The commanded pose is continuous; the tool decelerates to rest there and the
-  new plan starts from rest.
+  ahead. The commanded pose is continuous and the new plan starts from rest, so the
+  commanded velocity drops to zero at the change.
+
+In both cases the controller's speed and acceleration handling takes up the drop (the
+joints never exceed their speed limits: ``tests/test_pipeline.py``); a replan that
+continues at speed would need a timing that starts moving, which the plan-time check's
+geometric pass (from rest) does not give.
 
 Not for: the Drake system that calls this (``systems/planner.py``) or timing laws.
 """

@@ -24,7 +24,7 @@ it returns the joint velocity ``v``; the caller integrates the *command*,
   desired motion already is the spatial velocity ``V = [omega_WE, v_WE]`` and ``J`` is
   the Jacobian of E's origin, so ``J_2`` is the identity.
 
-The gains, the period and the 0.7 speed fraction are measured choices, explained in the
+The gains, the period and the 0.97 speed fraction are measured choices, explained in the
 controller's module.
 
 Not for: the LeafSystem and its timing (``systems/differential_ik.py``), following a
@@ -56,7 +56,7 @@ __all__ = [
 ]
 
 DEFAULT_TIME_STEP_S = 0.01
-DEFAULT_VELOCITY_LIMIT_FRACTION = 0.7
+DEFAULT_VELOCITY_LIMIT_FRACTION = 0.97
 DEFAULT_POSITION_GAIN = 20.0  # 1/s, on the pose error (both translation and rotation)
 METHODS = ("drake", "pseudo_inverse")
 

@@ -40,6 +40,7 @@ Not for: choosing a composition (``planning/``), simulating the robot (``diagram
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 
@@ -56,7 +57,7 @@ from drake_lfd.robot.differential_ik_law import (
     pose_error,
 )
 from drake_lfd.robot.initial_ik import UnreachableConfigurationError, initial_configuration_candidates
-from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, UR5E_JOINT_NAMES
+from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, UR5E_JOINT_NAMES, UR5eKinematics
 from drake_lfd.robot.motion_bounds import motion_bounds
 from drake_lfd.robot.scene import KinematicScene
 
@@ -246,6 +247,12 @@ class JointPathChecker:
         self._scene_graph_context = scene.scene_graph.GetMyContextFromRoot(scene.context)
         self._lower = self.law.position_lower
         self._upper = self.law.position_upper
+
+    @functools.cached_property
+    def kinematics(self) -> UR5eKinematics:
+        """Kinematics of the scene's arm (base and E), for timing its paths."""
+        workcell = self.scene.workcell
+        return UR5eKinematics(X_WB=workcell.X_WB, X_tool0_E=workcell.X_tool0_E)
 
     @classmethod
     def for_workcell(cls, workcell, **kwargs) -> "JointPathChecker":

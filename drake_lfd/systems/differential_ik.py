@@ -11,10 +11,13 @@ speed limits, solved in closed form for the UR5e's square Jacobian, or the paper
 pseudo-inverse, Eq. 35-36) is :class:`drake_lfd.robot.differential_ik_law.DifferentialIKLaw`,
 shared with the plan-time joint-space check so a plan's joint path is the one this
 controller commands. The ``drake`` law keeps the joint speeds inside
-``velocity_limit_fraction`` (0.7) of the UR5e's 180 deg/s: the 30 % margin leaves the
-servos headroom to catch up with a command moving at the limit without exceeding the
-limit themselves (with 10 % the measured speed overshot the limit by up to 11 %,
-3.49 rad/s, near the transferring task's singular regions). With ``position_gain=0`` and
+``velocity_limit_fraction`` (0.97) of the UR5e's 180 deg/s. Plans are timed within 0.9
+of the limits, time-optimally and with continuous velocity (``robot/path_timing.py``), so
+the controller has the rest to correct tracking errors: on the paper's tasks and 50
+pick-and-place tasks the measured joint speeds stay within 0.92 of the limit
+(``benchmarks/bench_motion_timing.py``). The bound was 0.7 while plans moved at
+0.25 m/s and their velocity jumped where spans joined: with 0.9 the servos then overshot
+the limit by up to 11 % near the transferring task's singular regions. With ``position_gain=0`` and
 ``method="pseudo_inverse"`` this is Eq. 38 exactly (open loop).
 
 Choices, measured on a 10 s, four-configuration plan (``benchmarks/bench_closed_loop.py``):

@@ -21,6 +21,7 @@ import dataclasses
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, DiagramBuilder, EventStatus, LeafSystem, OutputPort
 
+from drake_lfd.core.fidelity import check_cost_mode
 from drake_lfd.core.tasks import ConcreteTask
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.planning.planner import PLANNERS, PlanResult, plan_task
@@ -62,6 +63,13 @@ class PlannerSystem(LeafSystem):
         with it, only executable compositions are planned.
     check_period : float
         How often the inputs are compared with the plan's, s.
+    cost : {"paper", "fidelity"}
+        The action cost the planner minimises (``plan_task``'s ``cost``: Eq. 31, or with
+        the shape-fidelity terms of ``core/fidelity.py``).
+    refine : bool
+        Refine each executable plan by demonstration-guided trajectory optimization
+        (:func:`drake_lfd.planning.refinement.refine_plan`; needs ``checker``); a plan
+        the refinement cannot improve stands, with the reason in its ``refinement``.
     """
 
     def __init__(
@@ -73,8 +81,15 @@ class PlannerSystem(LeafSystem):
         floor_z: float | None = None,
         checker: JointPathChecker | None = None,
         check_period: float = 0.05,
+        cost: str = "paper",
+        refine: bool = False,
     ):
         super().__init__()
+        self._cost = check_cost_mode(cost)
+        if refine and checker is None:
+            raise ValueError("refine needs a checker (the plan-time joint-space check)")
+        self._refine = bool(refine)
+        self._refinement_scene = None  # built on the first refinement, kept for the work cell
         if planner not in PLANNERS:
             raise ValueError(f"planner must be one of {PLANNERS}, got {planner!r}")
         if planner == "q" and policy is None:
@@ -107,11 +122,22 @@ class PlannerSystem(LeafSystem):
     def planner(self) -> str:
         return self._planner
 
+    @property
+    def cost(self) -> str:
+        return self._cost
+
     def plan(self, task: ConcreteTask, library: LibraryFeatures) -> PlanResult:
         """One plan of ``task`` with this system's settings (no state involved)."""
-        return plan_task(task, library.features, planner=self._planner, policy=self._policy,
-                         seed=0 if task.seed is None else int(task.seed), floor_z=self._floor_z,
-                         checker=self._checker)
+        result = plan_task(task, library.features, planner=self._planner, policy=self._policy,
+                           seed=0 if task.seed is None else int(task.seed), floor_z=self._floor_z,
+                           checker=self._checker, cost=self._cost)
+        if not (self._refine and result.planned):
+            return result
+        from drake_lfd.planning.refinement import OptimizationScene, refine_plan
+
+        if self._refinement_scene is None:
+            self._refinement_scene = OptimizationScene(self._checker.scene.workcell)
+        return refine_plan(result, self._checker, scene=self._refinement_scene)
 
     def scheduled_plan(self, context: Context) -> ScheduledPlan | None:
         """The plan in ``context`` (this system's), or None before the first."""

@@ -1,0 +1,169 @@
+"""Refinement by trajectory optimization beside the unrefined plan and the plain optimizer.
+
+Run: ``python benchmarks/bench_refinement.py [--pick-and-place 10] [--cost fidelity]``.
+
+On the paper's three tasks (transferring and filling-and-pouring with ``paper5``,
+assembling with ``paper6``; trial seed 0) and on ``--pick-and-place`` random
+pick-and-place tasks (:mod:`drake_lfd.experiments.pick_and_place`, library ``paper5``),
+plans each with drake-lfd (the exact planner and the plan-time joint-space check, as
+``drake-lfd plan`` does), then refines it (``planning/refinement.py``) and runs the plain
+optimizer from the same start and goal configurations, and runs each of the three
+plans once closed loop (a pipeline Diagram with the plan given, from the start of its
+checked joint path). Prints, side by side:
+
+- planning time (the plain optimizer's: its own optimization and check, given the start
+  and goal configurations and the critical configurations' path fractions of the plan);
+- executed duration: closed loop, from con_1 to the last critical configuration;
+- success in closed loop (``experiments/judging.py``; a given plan's critical
+  configurations are its poses at its critical indices: for an optimized plan within
+  1.2 mm and 0.3 deg of the task's, by the program's constraints);
+- deviation from the demonstrated shape: the largest distance (and angle) from an
+  executed pose to the nearest pose of the composed demonstration path.
+
+A refinement or plain optimization that fails leaves the unrefined plan; its row then
+says ``failed`` with the reason below the table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from drake_lfd.core.resources import scenarios_directory
+from drake_lfd.core.tasks import draw_trial
+from drake_lfd.diagrams.closed_loop import ClosedLoopRunner
+from drake_lfd.diagrams.pipeline import build_pipeline, joint_path_checker
+from drake_lfd.experiments.judging import judge_run
+from drake_lfd.experiments.pick_and_place import write_pick_and_place_tasks
+from drake_lfd.io.library import Library, library_features
+from drake_lfd.io.task_files import load_task
+from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.refinement import OptimizationScene, plain_plan, refine_plan, shape_deviation
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.robot.workcell import Workcell
+
+METHODS = ("unrefined", "refined", "plain")
+
+
+def _executed(run, kinematics) -> tuple[float, list]:
+    """Closed-loop duration from con_1 to the last critical configuration, and E's
+    logged poses over it."""
+    t_first, t_last = run.critical_errors[0].time_s, run.critical_errors[-1].time_s
+    window = (run.t >= t_first - 1e-9) & (run.t <= t_last + 1e-9)
+    return float(t_last - t_first), [kinematics.X_WE(q) for q in run.q[window][::5]]
+
+
+def bench_task(name: str, task, features, cost: str) -> list[dict]:
+    """The three rows of one task (trial seed 0), or one ``not planned`` row."""
+    concrete = draw_trial(task, 0)
+    kinematics = UR5eKinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+    workcell = Workcell.of(concrete)
+    checker = joint_path_checker(workcell, task.simulation)
+    start = time.perf_counter()
+    composed = plan_task(concrete, features, floor_z=workcell.planner_floor, checker=checker, cost=cost)
+    plan_time = time.perf_counter() - start
+    if not composed.planned:
+        return [{"task": name, "method": "unrefined", "status": composed.status}]
+    scene = OptimizationScene(workcell)
+    rows = []
+    for method in METHODS:
+        if method == "unrefined":
+            result, seconds = composed, plan_time
+        else:
+            begin = time.perf_counter()
+            optimize = refine_plan if method == "refined" else plain_plan
+            result = optimize(composed, checker, scene=scene)
+            seconds = time.perf_counter() - begin + (plan_time if method == "refined" else 0.0)
+        report = result.refinement
+        row = {"task": name, "method": method, "planning_s": seconds, "planned_s": result.timed.duration,
+               "status": "planned" if report is None else report.status,
+               "reason": "" if report is None else report.reason}
+        if report is not None and not report.refined:
+            rows.append(row)
+            continue
+        # Each motion on a pipeline of its own with the plan given (no planner), from the
+        # start of its checked joint path.
+        given = ClosedLoopRunner(build_pipeline(concrete, plan=result.timed, config=task.simulation))
+        _, run = given.run(q_initial=result.joint_path.q[0])
+        judgement = judge_run(run, joint_limits=kinematics.position_limits(),
+                              velocity_limits=kinematics.velocity_limits(),
+                              path_constraints=concrete.path_constraints)
+        executed, poses = _executed(run, kinematics)
+        position, rotation = shape_deviation(composed.timed, poses)
+        row.update(executed_s=executed, success=judgement.success, failures=judgement.failures,
+                   deviation_m=position, deviation_rad=rotation)
+        rows.append(row)
+    return rows
+
+
+def _table(rows: list[dict]) -> str:
+    lines = [f"{'task':<22} {'method':<10} {'plan s':>7} {'planned s':>9} {'executed s':>10} {'success':>7} "
+             f"{'shape dev mm':>12} {'deg':>5}  status"]
+    for row in rows:
+        if "executed_s" in row:
+            lines.append(f"{row['task']:<22} {row['method']:<10} {row['planning_s']:>7.2f} {row['planned_s']:>9.2f} "
+                         f"{row['executed_s']:>10.2f} {str(row['success']):>7} {1000 * row['deviation_m']:>12.0f} "
+                         f"{math.degrees(row['deviation_rad']):>5.1f}  {row['status']}")
+        elif "planning_s" in row:
+            lines.append(f"{row['task']:<22} {row['method']:<10} {row['planning_s']:>7.2f} {'':>9} {'':>10} {'':>7} "
+                         f"{'':>12} {'':>5}  {row['status']}")
+        else:
+            lines.append(f"{row['task']:<22} {row['method']:<10} {'':>7} {'':>9} {'':>10} {'':>7} {'':>12} {'':>5}  "
+                         f"{row['status']}")
+    return "\n".join(lines)
+
+
+def _summary(rows: list[dict]) -> list[str]:
+    lines = []
+    by_task: dict[str, dict] = {}
+    for row in rows:
+        by_task.setdefault(row["task"], {})[row["method"]] = row
+    for task, methods in by_task.items():
+        refined, plain = methods.get("refined", {}), methods.get("plain", {})
+        if "executed_s" in refined and "executed_s" in plain:
+            lines.append(f"{task}: refined / plain executed duration {refined['executed_s'] / plain['executed_s']:.2f}")
+    for row in rows:
+        if row.get("reason"):
+            lines.append(f"{row['task']} {row['method']}: {row['reason']}")
+        for failure in row.get("failures", []):
+            lines.append(f"{row['task']} {row['method']}: closed loop: {failure}")
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--pick-and-place", type=int, default=10, metavar="N",
+                        help="random pick-and-place tasks to add (seeds 0..N-1)")
+    parser.add_argument("--cost", default="fidelity", choices=("paper", "fidelity"),
+                        help="the planner's action cost (drake-lfd plan's default: fidelity)")
+    args = parser.parse_args()
+    sims = scenarios_directory()
+    paper5 = library_features(Library.open("paper5"))
+    paper6 = library_features(Library.open("paper6"))
+    rows = []
+    for name, features in (("transferring", paper5), ("filling_pouring", paper5), ("assembling", paper6)):
+        rows += bench_task(name, load_task(sims / f"{name}.yaml"), features, args.cost)
+        print(f"{name}: done", flush=True)
+    with tempfile.TemporaryDirectory() as directory:
+        for path in write_pick_and_place_tasks(Path(directory), args.pick_and_place):
+            rows += bench_task(path.stem, load_task(path), paper5, args.cost)
+    print()
+    print(_table(rows))
+    print()
+    for line in _summary(rows):
+        print(line)
+    executed = {m: [r["executed_s"] for r in rows if r["method"] == m and "executed_s" in r] for m in METHODS}
+    for method in METHODS:
+        values = executed[method]
+        successes = sum(1 for r in rows if r["method"] == method and r.get("success"))
+        print(f"{method}: {successes} successes of {len(values)} runs; mean executed duration "
+              f"{np.mean(values) if values else float('nan'):.2f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,79 @@
+"""Speed-up of ``drake-lfd sweep`` on 2 worker processes over 1, and whether the rows agree.
+
+Run: ``python benchmarks/bench_sweep.py [--trials 10] [--grid X0:X1:NX Y0:Y1:NY]``. It runs
+the same sweep twice as a user would, each a separate ``drake-lfd sweep`` process: the
+transferring task with ``paper5`` on a 2 x 2 grid of base placements around the task
+file's base, 10 trials each (40 trials), first with ``--workers 1`` (in one process, no
+cluster), then with ``--workers 2`` (a LocalCluster of two worker processes; cluster
+start-up included). Prints both wall times, the speed-up (target: at least 1.7 on two
+cores), the load average before and after (the machine is shared: other work on the
+cores lowers the speed-up), and whether the two ``sweep.jsonl`` tables are the same row
+for row (every field but wall-clock ones, rows matched by their inputs).
+
+Not for: measuring a single trial (``bench_pipeline.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from drake_lfd.core.resources import scenarios_directory
+from drake_lfd.experiments.sweep import row_key
+from drake_lfd.io.json_lines import read_json_lines
+
+
+def without_wall_times(value):
+    """``value`` without wall-clock fields (they differ between runs)."""
+    if isinstance(value, dict):
+        return {k: without_wall_times(v) for k, v in value.items() if "wall" not in k}
+    if isinstance(value, list):
+        return [without_wall_times(v) for v in value]
+    return value
+
+
+def run_sweep(out: Path, workers: int, trials: int, grid: list[str]) -> float:
+    """Wall time of one ``drake-lfd sweep`` process, start-up included."""
+    command = [sys.executable, "-m", "drake_lfd", "sweep", str(scenarios_directory() / "transferring.yaml"),
+               "--library", "paper5", "--trials", str(trials), "--base-grid", *grid,
+               "--workers", str(workers), "--out", str(out)]
+    start = time.perf_counter()
+    subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--trials", type=int, default=10, help="trials per base placement")
+    parser.add_argument("--grid", nargs=2, default=["-0.3:-0.2:2", "0.6:0.7:2"], metavar="A0:A1:N",
+                        help="the x and y axes of --base-grid")
+    args = parser.parse_args()
+    placements = 1
+    for axis in args.grid:
+        placements *= int(axis.split(":")[2])
+    total = placements * args.trials
+    load_before = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory() as scratch:
+        walls, tables = {}, {}
+        for workers in (1, 2):
+            out = Path(scratch) / f"workers{workers}"
+            walls[workers] = run_sweep(out, workers, args.trials, args.grid)
+            rows = read_json_lines(out / "sweep.jsonl")
+            tables[workers] = sorted((without_wall_times(row) for row in rows), key=row_key)
+            successes = sum(bool(row["success"]) for row in rows)
+            print(f"--workers {workers}: {total} trials ({placements} placements x {args.trials}) in "
+                  f"{walls[workers]:.1f} s wall, {successes} succeeded", flush=True)
+    load_after = os.getloadavg()[0]
+    same = len(tables[1]) == len(tables[2]) == total and tables[1] == tables[2]
+    print(f"speed-up on 2 workers: {walls[1] / walls[2]:.2f}x (target 1.7x); {os.cpu_count()} cores; "
+          f"load average {load_before:.1f} before, {load_after:.1f} after")
+    print(f"rows identical row for row (wall-clock fields aside): {'yes' if same else 'NO'}")
+
+
+if __name__ == "__main__":
+    main()

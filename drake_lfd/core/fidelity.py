@@ -1,0 +1,283 @@
+"""Shape fidelity of a mapped demonstration: the allocation cost beyond the paper's Eq. 31.
+
+The paper prices an action (demo d covering task span con_j .. con_k) by the total
+rotation distance alpha of its allocation (Eq. 31), and the similarity test accepts
+almost any translation direction (``d_beta = -0.9``). So a demonstration can be
+stretched, shrunk or bent by the mapping (Eq. 22-25) at no cost: a 64 cm straight carry
+is covered by the 15 cm lift-over-lower of ``stacking`` stretched 3.8x, which takes the
+tool 53 cm off the straight line; and many suffixes of one demonstration that share its
+rotations cost the same, so the allocation does not find the suffix a task was made
+from.
+
+The ``fidelity`` cost adds, per allocated pair (task delta l, demo delta i), terms that
+measure how far the mapping deforms the demonstration (docs/method.rst, "Shape
+fidelity"), each in units of alpha through :class:`FidelityWeights`:
+
+* **direction**: the angle (rad) between the task translation ``t_l`` and the demo
+  translation ``t_i`` (both in the body frame they start from, as beta, Eq. 20). For the
+  first pair the mapping turns the demo's path by that angle relative to the tool (a
+  lift becomes a sideways move); for later pairs it is how much the anchor correction
+  bends the path.
+* **stretch**: ``|ln(|t_l| / |t_i|)|``, the log of the pair's scale: symmetric in
+  stretching and shrinking, 0 for a faithful copy, additive over nested scalings.
+  Two translations shorter than ``min_translation_m`` have no direction and no size:
+  both terms are 0 (one short and one long are not similar anyway).
+* **anchor** (metres): ``|R_i^T t_l - R_l^T t_l|``, how far the pair's rotation
+  mismatch (alpha, an angle) moves the pair's configuration relative to the span's end,
+  over the task's lever arm ``t_l``; for the first pair exactly the position the
+  mapping's correction must make up (docs/method.rst, Mapping). alpha alone prices a
+  45 deg mismatch on a 40 cm carry like one on a 1 cm nudge.
+* **excursion** (first pair only, metres): the mapping scales the whole suffix by
+  ``s = |t_task| / |t_demo|`` (Eq. 23); points off the suffix's chord then move off the
+  demonstrated shape by ``|s - 1| h``, with ``h`` the suffix's largest distance from
+  its chord (:func:`suffix_excursions`). That is how far a lift-over-lower grows when it
+  is stretched, and 0 for a straight demonstration or a faithful copy.
+
+Every term depends only on one pair (the excursion only on the first pair's demo
+index), so the least-cost allocation is still the O(p n) dynamic programme of
+``similarity.py``; its rows just carry alpha plus the terms, which
+:func:`action_pair_costs` computes for the similar pairs only (the similarity test
+itself is unchanged: the cost only ranks what Definition 1 accepts).
+
+Cost modes (:data:`COST_MODES`): ``"fidelity"`` adds the terms at full weight, to the
+action's cost and to the choice of its allocation; ``"paper"`` keeps Eq. 31 as the
+action's cost and adds the terms times :data:`PAPER_TIE_WEIGHT` only to choose the
+allocation that is mapped, so ties in alpha (equal rotations along a demo) are broken by
+fidelity, then by the earliest demo index.
+
+Not for: the similarity test itself (``similarity.py``), choosing among actions (the
+planners) or mapping (``mapping.py``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from drake_lfd.core.dual_quaternion import (
+    IDENTITY_DUAL_QUATERNION,
+    quaternion_conjugate,
+    translation_from_dual_quaternion,
+    vector_rotated_by_quaternion,
+)
+from drake_lfd.core.features import Feature, poses_from_deltas
+from drake_lfd.core.similarity import Tolerances, alpha_beta_matrices, pair_costs, similar_pair_costs
+
+__all__ = [
+    "COST_MODES",
+    "PAPER_TIE_WEIGHT",
+    "FidelityWeights",
+    "check_cost_mode",
+    "suffix_excursions",
+    "feature_excursions",
+    "fidelity_terms",
+    "action_pair_costs",
+]
+
+COST_MODES = ("paper", "fidelity")
+
+# In the "paper" mode the fidelity terms only break ties in alpha. Far above the
+# rounding of alpha's matrix form (~2e-8 for equal rotations) times the fidelity
+# difference of neighbouring samples (~1e-2), far below any alpha difference that
+# matters (1e-4 is 0.01 deg).
+PAPER_TIE_WEIGHT = 1e-5
+
+
+@dataclasses.dataclass(frozen=True)
+class FidelityWeights:
+    """Weights of the fidelity terms, each converting its term into units of alpha.
+
+    alpha is ``2 sin(angle / 4)``, about half the rotation angle for small angles.
+
+    Attributes
+    ----------
+    direction_per_rad : float
+        Cost per radian between a pair's task and demo translations. 0.1: a translation
+        turned by 150 deg (about the most ``d_beta = -0.9`` lets through) costs 0.26,
+        like a rotation off by 30 deg. Kept low because a straight motion at a constant
+        orientation may well run either way; the stretch and excursion then decide.
+    log_scale : float
+        Cost per unit of ``|ln(scale)|`` of a pair. 0.5: a 2x stretch costs 0.35, like a
+        rotation off by 40 deg.
+    excursion_per_m : float
+        Cost per metre that scaling moves the path off the demonstrated shape. 10.0: a
+        lift grown by 5 cm costs 0.5, like a rotation off by 58 deg (``d_alpha``), so
+        stretching a curved demonstration costs more than turning a straight one around.
+    anchor_per_m : float
+        Cost per metre the pair's rotation mismatch moves its configuration (the anchor
+        correction's lever arm). 5.0: a 10 cm correction costs 0.5.
+    """
+
+    direction_per_rad: float = 0.1
+    log_scale: float = 0.5
+    excursion_per_m: float = 10.0
+    anchor_per_m: float = 5.0
+
+    def __post_init__(self):
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            if not (np.isfinite(value) and value >= 0.0):
+                raise ValueError(f"FidelityWeights.{field.name} must be finite and >= 0, got {value}")
+
+
+def check_cost_mode(cost: str) -> str:
+    """``cost`` if it is one of :data:`COST_MODES`, else ValueError."""
+    if cost not in COST_MODES:
+        raise ValueError(f"cost must be one of {COST_MODES}, got {cost!r}")
+    return cost
+
+
+def suffix_excursions(positions: ArrayLike, min_length_m: float = Tolerances().min_translation_m
+                      ) -> NDArray[np.float64]:
+    """For each suffix ``i .. m-1`` of a demo path, its largest distance from its chord.
+
+    Parameters
+    ----------
+    positions : array-like, shape (m, 3)
+        The demo's (resampled) positions, in any one frame.
+    min_length_m : float
+        A chord shorter than this has no direction: the mapping does not scale such a
+        suffix (scale 1), so its excursion is 0.
+
+    Returns
+    -------
+    h : array, shape (m - 1,)
+        ``h[i]`` is the largest distance (m) of ``positions[i:]`` from the line through
+        ``positions[i]`` and ``positions[-1]``: one per demo delta index.
+    """
+    p = np.asarray(positions, dtype=float)
+    chord = p[-1] - p[:-1]  # (m - 1, 3)
+    length = np.linalg.norm(chord, axis=1)
+    unit = chord / np.maximum(length, min_length_m)[:, None]
+    offsets = p[None, :, :] - p[:-1, None, :]  # (i, j, 3): positions[j] from positions[i]
+    distance = np.linalg.norm(np.cross(offsets, unit[:, None, :]), axis=2)
+    later = np.arange(len(p))[None, :] >= np.arange(len(p) - 1)[:, None]
+    h = np.where(later, distance, 0.0).max(axis=1)
+    h[length < min_length_m] = 0.0
+    return h
+
+
+def feature_excursions(feature: Feature, min_length_m: float = Tolerances().min_translation_m
+                       ) -> NDArray[np.float64]:
+    """:func:`suffix_excursions` of a demonstration's feature, one per delta index (its
+    positions rebuilt from the deltas in the last pose's frame: the excursions do not
+    depend on where the demonstration was)."""
+    poses = poses_from_deltas(feature.deltas, IDENTITY_DUAL_QUATERNION)
+    return suffix_excursions(translation_from_dual_quaternion(poses), min_length_m)
+
+
+def fidelity_terms(
+    beta: ArrayLike,
+    task_rotations: ArrayLike,
+    task_translations: ArrayLike,
+    demo_rotations: ArrayLike,
+    demo_translations: ArrayLike,
+    demo_excursions: ArrayLike,
+    weights: FidelityWeights = FidelityWeights(),
+    min_length_m: float = Tolerances().min_translation_m,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The fidelity terms of pairs (module docstring), elementwise: pair ``e`` is task
+    delta ``e`` with demo delta ``e``.
+
+    Parameters
+    ----------
+    beta : array-like, shape (m,)
+        The pairs' translation cosines (:func:`similarity.alpha_beta_matrices`).
+    task_rotations : array-like, shape (m, 4)
+        Unit quaternions.
+    task_translations : array-like, shape (m, 3)
+    demo_rotations : array-like, shape (m, 4)
+        Unit quaternions.
+    demo_translations : array-like, shape (m, 3)
+    demo_excursions : array-like, shape (m,)
+        :func:`suffix_excursions` of the demo delta indices.
+    weights : FidelityWeights
+    min_length_m : float
+        Translations shorter than this have no direction or size.
+
+    Returns
+    -------
+    pair, first : arrays, shape (m,)
+        ``pair``: the weighted direction, stretch and anchor terms; ``first``: the
+        weighted excursion, which counts only where the pair is the allocation's first.
+    """
+    t = np.asarray(task_translations, dtype=float)
+    task_q = np.asarray(task_rotations, dtype=float)
+    demo_q = np.asarray(demo_rotations, dtype=float)
+    task_length = np.linalg.norm(t, axis=-1)
+    demo_length = np.linalg.norm(np.asarray(demo_translations, dtype=float), axis=-1)
+    log_ratio = np.log(np.maximum(task_length, min_length_m)) - np.log(np.maximum(demo_length, min_length_m))
+    direction = np.arccos(np.clip(np.asarray(beta, dtype=float), -1.0, 1.0))
+    pair = weights.direction_per_rad * direction + weights.log_scale * np.abs(log_ratio)
+    pair[(task_length < min_length_m) & (demo_length < min_length_m)] = 0.0
+    # Anchor: where the demo's rotation puts the pair's start, against the task's.
+    start_demo = vector_rotated_by_quaternion(quaternion_conjugate(demo_q), t)
+    start_task = vector_rotated_by_quaternion(quaternion_conjugate(task_q), t)
+    pair += weights.anchor_per_m * np.linalg.norm(start_demo - start_task, axis=-1)
+    # The mapping's scale if the pair is the first (Eq. 23: 1 for a short demo translation).
+    scale = np.where(demo_length < min_length_m, 1.0, np.exp(log_ratio))
+    first = weights.excursion_per_m * np.abs(scale - 1.0) * np.asarray(demo_excursions, dtype=float)
+    return pair, first
+
+
+# Similar pairs whose fidelity terms are computed at once (bounds the temporaries,
+# about 300 bytes a pair).
+_PAIRS_PER_BATCH = 1 << 16
+
+
+def action_pair_costs(
+    task_rotations: ArrayLike,
+    task_translations: ArrayLike,
+    demo_rotations: ArrayLike,
+    demo_translations: ArrayLike,
+    demo_excursions: ArrayLike,
+    tolerances: Tolerances = Tolerances(),
+    cost: str = "paper",
+    weights: FidelityWeights = FidelityWeights(),
+    tie_break: bool = True,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Allocation row costs of every (task delta, demo delta) pair in a cost mode.
+
+    Parameters
+    ----------
+    task_rotations : array-like, shape (p, 4)
+    task_translations : array-like, shape (p, 3)
+    demo_rotations : array-like, shape (n, 4)
+    demo_translations : array-like, shape (n, 3)
+    demo_excursions : array-like, shape (n,)
+    tolerances : similarity.Tolerances
+    cost : {"paper", "fidelity"}
+    weights : FidelityWeights
+    tie_break : bool
+        In the ``"paper"`` mode: add the fidelity terms times :data:`PAPER_TIE_WEIGHT`
+        (to choose an allocation), or leave them out (for the action's cost: the pair
+        costs are then Eq. 31's alpha exactly, ``similarity.pair_costs``).
+
+    Returns
+    -------
+    pair, first : arrays, shape (p, n)
+        ``pair``: alpha plus the weighted direction, stretch and anchor terms where the
+        pair is similar (Eq. 19-21), inf where it is not; ``first``: what the pair adds
+        when it is the allocation's first (the excursion). The terms are computed for
+        the similar pairs only.
+    """
+    if check_cost_mode(cost) == "paper" and not tie_break:
+        alpha = pair_costs(task_rotations, task_translations, demo_rotations, demo_translations, tolerances)
+        return alpha, np.zeros(alpha.shape)  # calloc: no memory until written
+    factor = 1.0 if cost == "fidelity" else PAPER_TIE_WEIGHT
+    task_q, task_t = np.asarray(task_rotations, dtype=float), np.asarray(task_translations, dtype=float)
+    demo_q, demo_t = np.asarray(demo_rotations, dtype=float), np.asarray(demo_translations, dtype=float)
+    demo_h = np.asarray(demo_excursions, dtype=float)
+    alpha, beta = alpha_beta_matrices(task_q, task_t, demo_q, demo_t, tolerances.min_translation_m)
+    pair = similar_pair_costs(alpha, beta, tolerances)
+    first = np.zeros(pair.shape)
+    rows, columns = np.nonzero(np.isfinite(pair))
+    for start in range(0, len(rows), _PAIRS_PER_BATCH):
+        r, c = rows[start:start + _PAIRS_PER_BATCH], columns[start:start + _PAIRS_PER_BATCH]
+        terms, first_terms = fidelity_terms(beta[r, c], task_q[r], task_t[r], demo_q[c], demo_t[c], demo_h[c],
+                                            weights, tolerances.min_translation_m)
+        pair[r, c] += factor * terms
+        first[r, c] = factor * first_terms
+    return pair, first

@@ -1,0 +1,375 @@
+"""Closed-loop trials on worker processes or a cluster (dask.distributed), results as they finish.
+
+A trial is named by a small, picklable :class:`TrialSpec`: which runner (a
+:class:`RunnerSpec`: task file, library, planner options, an optional robot base
+placement) and which trial (1-based index and seed). :func:`run_trial_specs` runs a list
+of them on a ``dask.distributed`` Client: by default a LocalCluster of single-threaded
+worker *processes* (Drake and the planners hold the GIL, so threads would not run in
+parallel), or an existing cluster named by its scheduler address. Each worker process
+builds a :class:`~drake_lfd.experiments.simulation.TrialRunner` (one pipeline Diagram)
+once per distinct RunnerSpec and reuses it for every trial of that spec it runs. A trial
+draws its concrete task from its own seed, so its outcome does not depend on which
+process ran it, nor on the trials that ran before it there. With one worker (or one
+trial) and no scheduler, the trials run in this process and no cluster is started.
+
+Outcomes reach a callback as they finish (``as_completed``), or, with ``in_order``, in
+the order of the specs (a finished trial waits for the ones before it; on an interrupt,
+every finished one is still delivered before the interrupt goes on). The cluster is shut
+down however the run ends (Ctrl-C and SIGTERM included). Dask's own logging is silenced.
+
+Not for: judging trials (:mod:`drake_lfd.experiments.simulation`), sweeps over base
+placements (:mod:`drake_lfd.experiments.sweep`), or the command line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import logging
+import math
+import os
+import signal
+import time
+import warnings
+from collections import OrderedDict
+from pathlib import Path
+from typing import Callable, Iterator, Sequence
+
+import numpy as np
+
+from drake_lfd.core.errors import InputError
+
+__all__ = [
+    "BasePlacement",
+    "RunnerSpec",
+    "TrialSpec",
+    "runner_spec",
+    "trial_specs",
+    "run_trial_spec",
+    "run_trial_specs",
+    "run_trials_on_workers",
+    "default_workers",
+]
+
+#: TrialRunners a worker process keeps (least recently used dropped first): a sweep
+#: submits the trials of one base placement together, so a few cover the trials in flight.
+RUNNERS_PER_WORKER = 4
+
+
+@dataclasses.dataclass(frozen=True)
+class BasePlacement:
+    """Where the robot base stands: position (m) and yaw about the world z axis (deg).
+
+    It replaces the position and yaw of the task's ``X_WB``; roll and pitch stay the task's.
+    """
+
+    x: float
+    y: float
+    z: float
+    yaw_deg: float
+
+    @classmethod
+    def of(cls, X_WB) -> "BasePlacement":
+        """The placement of a base pose ``X_WB`` (a RigidTransform)."""
+        from pydrake.math import RollPitchYaw
+
+        x, y, z = (float(v) for v in X_WB.translation())
+        return cls(x, y, z, math.degrees(RollPitchYaw(X_WB.rotation()).yaw_angle()))
+
+    def X_WB(self, task_X_WB):
+        """The base pose: this position and yaw, the roll and pitch of ``task_X_WB``."""
+        from pydrake.math import RigidTransform, RollPitchYaw
+
+        rpy = RollPitchYaw(task_X_WB.rotation())
+        return RigidTransform(RollPitchYaw(rpy.roll_angle(), rpy.pitch_angle(), math.radians(self.yaw_deg)),
+                              np.array([self.x, self.y, self.z]))
+
+
+@dataclasses.dataclass(frozen=True)
+class RunnerSpec:
+    """What one TrialRunner (one pipeline Diagram) is built from; hashable, so a worker
+    keeps one runner per spec.
+
+    ``task_file``, ``library`` (a bundled name or an absolute path), ``policy_file`` and
+    ``base`` say what to load; ``fingerprint`` (:func:`runner_spec`) changes when those
+    files do, so a long-lived worker of a cluster does not reuse a stale runner. Every
+    other field is a keyword option of
+    :class:`~drake_lfd.experiments.simulation.TrialRunner` (a new planner option is a new
+    field here, with the TrialRunner's default).
+    """
+
+    task_file: str
+    library: str
+    policy_file: str | None = None
+    base: BasePlacement | None = None
+    fingerprint: str = ""
+    planner: str = "exact"
+    cost: str = "paper"
+    refine: bool = False
+
+    def runner_options(self) -> dict:
+        """The TrialRunner keyword options: every field but what says what to load."""
+        loading = {"task_file", "library", "policy_file", "base", "fingerprint"}
+        return {field.name: getattr(self, field.name) for field in dataclasses.fields(self)
+                if field.name not in loading}
+
+    def task(self):
+        """The task file's task, with ``base`` (if any) as its robot base."""
+        from drake_lfd.io.task_files import load_task
+
+        task = load_task(self.task_file)
+        if self.base is None:
+            return task
+        return dataclasses.replace(task, X_WB=self.base.X_WB(task.X_WB))
+
+    def build(self):
+        """A TrialRunner for this spec (loads the task, the library and the policy)."""
+        from drake_lfd.experiments.simulation import TrialRunner
+        from drake_lfd.io.library import Library, library_features
+        from drake_lfd.io.policy_files import load_policy
+
+        policy = load_policy(self.policy_file) if self.policy_file else None
+        return TrialRunner(self.task(), library_features(Library.open(self.library)), policy=policy,
+                           **self.runner_options())
+
+
+@dataclasses.dataclass(frozen=True)
+class TrialSpec:
+    """One trial: its runner, its 1-based index and its seed; ``record_html`` (optional)
+    asks for a Meshcat recording of it."""
+
+    runner: RunnerSpec
+    trial: int
+    seed: int
+    record_html: str | None = None
+
+
+def _fingerprint(*paths: Path | None) -> str:
+    digest = hashlib.sha256()
+    for path in paths:
+        if path is not None and path.is_file():
+            digest.update(path.read_bytes())
+        digest.update(b"\0")
+    return digest.hexdigest()[:16]
+
+
+def runner_spec(task_file, library, *, policy_file=None, base: BasePlacement | None = None, **options) -> RunnerSpec:
+    """A RunnerSpec with absolute paths and the fingerprint of the files it names.
+
+    Parameters
+    ----------
+    task_file : str or Path
+    library : Library
+        An opened library (its label names it: a bundled name or an absolute path).
+    policy_file : str or Path, optional
+    base : BasePlacement, optional
+    **options
+        TrialRunner options (``planner``, ...), RunnerSpec fields.
+    """
+    from drake_lfd.io.library_manifest import MANIFEST_NAME
+
+    task_path = Path(task_file).resolve()
+    policy_path = Path(policy_file).resolve() if policy_file else None
+    return RunnerSpec(
+        task_file=str(task_path), library=library.label,
+        policy_file=None if policy_path is None else str(policy_path), base=base,
+        fingerprint=_fingerprint(task_path, policy_path, library.path / MANIFEST_NAME), **options,
+    )
+
+
+def trial_specs(runner: RunnerSpec, *, trials: int, seed: int, record_html=None) -> list[TrialSpec]:
+    """Trials 1..``trials`` of one runner, trial i (1-based) with seed ``seed + i - 1``
+    (as :func:`~drake_lfd.experiments.simulation.run_trials`); the first one carries
+    ``record_html``."""
+    return [TrialSpec(runner, i + 1, seed + i, None if (i or record_html is None) else str(record_html))
+            for i in range(trials)]
+
+
+# The TrialRunners of this process (a worker's, or the main process's), by spec.
+_RUNNERS: OrderedDict[RunnerSpec, object] = OrderedDict()
+
+
+def _runner_for(spec: RunnerSpec):
+    runner = _RUNNERS.get(spec)
+    if runner is None:
+        runner = spec.build()
+        _RUNNERS[spec] = runner
+        while len(_RUNNERS) > RUNNERS_PER_WORKER:
+            _RUNNERS.popitem(last=False)
+    _RUNNERS.move_to_end(spec)
+    return runner
+
+
+def run_trial_spec(spec: TrialSpec):
+    """Runs one trial on this process's runner for its spec (built on first use); returns
+    its :class:`~drake_lfd.experiments.simulation.TrialOutcome`. What the workers run."""
+    return _runner_for(spec.runner).run(trial=spec.trial, seed=spec.seed, record_html=spec.record_html)
+
+
+def default_workers(trials: int) -> int:
+    """Every core, but no more workers than trials."""
+    return max(1, min(os.cpu_count() or 1, int(trials)))
+
+
+def _silence_dask() -> None:
+    """Dask's and Tornado's loggers say nothing below CRITICAL, and dask's Python warnings
+    are not shown (about closing workers, ports and heartbeats: not for the user)."""
+    for name in ("distributed", "dask", "tornado", "bokeh"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+    warnings.filterwarnings("ignore", module=r"(distributed|dask)(\.|$)")
+
+
+def _interrupt_shield():
+    """A worker plugin that makes a local worker process ignore SIGINT: Ctrl-C reaches
+    the whole process group, and only this process is to act on it (it shuts the
+    cluster down); a worker would print its own traceback. Made here so that importing
+    this module does not import dask (the class travels to the workers by value)."""
+    from distributed import WorkerPlugin
+
+    class IgnoreInterrupts(WorkerPlugin):
+        name = "drake-lfd-ignore-interrupts"
+        idempotent = True
+
+        def setup(self, worker):
+            with contextlib.suppress(ValueError):  # not the worker process's main thread
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return IgnoreInterrupts()
+
+
+@contextlib.contextmanager
+def _client(workers: int, scheduler: str | None) -> Iterator:
+    """A Client of ``scheduler``, or of a new LocalCluster of ``workers`` single-threaded
+    worker processes; both closed on the way out, whatever happens."""
+    from distributed import Client, LocalCluster
+
+    _silence_dask()
+    cluster = None
+    try:
+        if scheduler is None:
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", memory_limit=0, silence_logs=logging.CRITICAL)
+            client = Client(cluster)
+            client.register_plugin(_interrupt_shield())
+        else:
+            try:
+                client = Client(scheduler, timeout="20s")
+            except (OSError, TimeoutError, ValueError) as error:
+                raise InputError(f"cannot reach the scheduler {scheduler!r}: {error}",
+                                 field="--scheduler") from None
+        try:
+            yield client
+        finally:
+            with contextlib.suppress(Exception):
+                client.close(timeout=10)
+    finally:
+        if cluster is not None:
+            with contextlib.suppress(Exception):
+                cluster.close(timeout=10)
+
+
+def run_trial_specs(
+    specs: Sequence[TrialSpec],
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    on_result: Callable[[int, int, TrialSpec, object], None] | None = None,
+    in_order: bool = False,
+) -> list:
+    """Runs the trials; returns their outcomes in the order of ``specs``.
+
+    Parameters
+    ----------
+    specs : sequence of TrialSpec
+    workers : int, optional
+        Worker processes of the LocalCluster (default :func:`default_workers`); with 1
+        (or a single trial) the trials run in this process.
+    scheduler : str, optional
+        The address of a running scheduler (``tcp://host:8786``): its workers run the
+        trials (``workers`` is then ignored).
+    on_result : callable, optional
+        ``on_result(done, total, spec, outcome)`` for each finished trial, in the main
+        process: as they finish, or with ``in_order`` in the order of ``specs``.
+    in_order : bool
+        Deliver in spec order (finished trials wait for the ones before them); an
+        interrupt or an error first delivers every trial that finished.
+    """
+    specs = list(specs)
+    total = len(specs)
+    outcomes: list = [None] * total
+    finished: dict[int, object] = {}  # index -> outcome, finished but not yet delivered
+    delivered = 0
+    next_index = 0  # in_order: the next index to deliver
+
+    def deliver(index: int) -> None:
+        nonlocal delivered
+        outcome = finished.pop(index)
+        delivered += 1
+        if on_result is not None:
+            on_result(delivered, total, specs[index], outcome)
+
+    def deliver_ready() -> None:
+        nonlocal next_index
+        if not in_order:
+            deliver_all()
+        while next_index in finished:
+            deliver(next_index)
+            next_index += 1
+
+    def deliver_all() -> None:  # also after an interrupt: every finished trial, in order
+        for index in sorted(finished):
+            deliver(index)
+
+    workers = default_workers(total) if workers is None else int(workers)
+    if scheduler is None and (workers <= 1 or total <= 1):
+        try:
+            for index, spec in enumerate(specs):
+                outcomes[index] = finished[index] = run_trial_spec(spec)
+                deliver_ready()
+        finally:
+            _RUNNERS.clear()  # this process is no worker: its Diagrams are not kept
+        return outcomes
+
+    from distributed import as_completed
+
+    with _client(workers, scheduler) as client:
+        futures = {client.submit(run_trial_spec, spec, pure=False): index for index, spec in enumerate(specs)}
+        try:
+            for future in as_completed(futures):
+                index = futures[future]
+                outcomes[index] = finished[index] = future.result()
+                deliver_ready()
+        except BaseException:
+            with contextlib.suppress(Exception):  # the original error is the one to report
+                deliver_all()
+            raise
+    return outcomes
+
+
+def run_trials_on_workers(
+    runner: RunnerSpec,
+    *,
+    trials: int,
+    seed: int = 0,
+    record_html=None,
+    progress: Callable[[int, int, object], None] | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+) -> tuple[list, float]:
+    """:func:`~drake_lfd.experiments.simulation.run_trials` on workers: the same
+    outcomes, in trial order, and the wall time; ``progress(done, total, outcome)`` in
+    trial order. The first trial carries ``record_html``; if it did not run, the first
+    trial that did is run once more here to record it (a trial's outcome is the same
+    wherever it runs)."""
+    start = time.perf_counter()
+    outcomes = run_trial_specs(
+        trial_specs(runner, trials=trials, seed=seed, record_html=record_html), workers=workers,
+        scheduler=scheduler, in_order=True,
+        on_result=None if progress is None else lambda done, total, spec, outcome: progress(done, total, outcome),
+    )
+    if record_html is not None and outcomes and outcomes[0].run is None:
+        first = next((o for o in outcomes if o.run is not None), None)
+        if first is not None:
+            runner.build().run(trial=first.trial, seed=first.seed, record_html=record_html)
+    return outcomes, time.perf_counter() - start

@@ -1,0 +1,407 @@
+"""Demonstration-guided trajectory optimization of a composed plan (``--refine``), and
+the plain optimizer it is compared with.
+
+:func:`refine_plan` takes an executable composed plan (a :class:`PlanResult` with its
+joint path) and optimizes a joint trajectory seeded by it (docs/method.rst, Refinement
+by trajectory optimization): the composed joint path is the initial guess, each
+critical configuration is pinned at the path fraction where the composed plan reaches
+it, and the motion must stay in a tube around the mapped demonstrations (E within
+``tube_position_m`` and ``tube_rotation_rad`` of the composed SE(3) path at the matching
+path fraction; within each span the fraction is matched by arc length), keep the task's
+path constraints, the joint limits, speed and acceleration bounds, the tool speed and the
+clearance (:mod:`drake_lfd.robot.trajectory_optimization`), in minimum time. The result
+is verified like any plan: sampled at the controller's period, timed as a
+:class:`~drake_lfd.core.timing.TimedPlan` (E's poses by forward kinematics, critical
+indices at the samples where each critical configuration is due) and followed by the
+:class:`~drake_lfd.robot.joint_path.JointPathChecker`; the path constraints and the
+tube are checked on the followed joint path. When the optimizer fails or any check
+fails, the unrefined plan stands and the report says why.
+
+:func:`plain_plan` is the peer without demonstrations: the same program and checks, from
+a straight joint-space line between the composed plan's start and goal configurations,
+with no tube.
+
+Not for: composing demonstrations (``planner.py``) or the Drake program itself
+(``robot/trajectory_optimization.py``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+from pydrake.trajectories import PiecewisePose
+
+from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
+from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
+from drake_lfd.core.timing import TimedPlan
+from drake_lfd.planning.planner import PlanResult
+from drake_lfd.robot.joint_path import JointPathChecker
+from drake_lfd.robot.trajectory_optimization import (
+    OptimizationScene,
+    PoseBound,
+    PoseTarget,
+    TrajectoryLimits,
+    fit_bspline,
+    optimize_joint_trajectory,
+    sample_trajectory,
+)
+
+__all__ = [
+    "RefinementOptions",
+    "RefinementReport",
+    "refine_plan",
+    "plain_plan",
+    "tube_deviation",
+    "shape_deviation",
+]
+
+
+@dataclasses.dataclass(frozen=True)
+class RefinementOptions:
+    """The refinement's settings (docs/method.rst, Refinement by trajectory
+    optimization, justifies the defaults).
+
+    Attributes
+    ----------
+    tube_position_m, tube_rotation_rad : float
+        The tube: E within this distance and angle of the composed path at the matching
+        path fraction (0.15 m, 30 deg), checked on the followed joint path.
+    tube_margin : float
+        The program bounds the tube at this fraction of it (0.8): its samples leave
+        room for the path between them and for the controller.
+    tube_samples : int
+        Path fractions the tube is constrained at (20).
+    con_position_tolerance_m, con_rotation_tolerance_rad : float
+        Each critical configuration, in the program: position within this along each
+        axis (0.7 mm; at most 1.2 mm away), rotation within this (0.3 deg).
+    check_fraction : float
+        The followed joint path must meet each critical configuration within this
+        fraction of the success tolerances (0.5: 2.5 mm, 1 deg), the rest being the
+        closed loop's: its servos lag the command, and the motion passes the
+        intermediate critical configurations at speed.
+    pass_speed_m_s : float, optional
+        E passes each intermediate critical configuration at most this fast (0.4 m/s;
+        the motion is slowed along its path around it). The closed loop's servos lag
+        the command by about 5 ms, so at 0.6 m/s E is 3 mm behind when the
+        configuration is due; at 0.4 m/s, 2 mm. None: as optimized.
+    path_constraint_margin_rad : float
+        A path constraint's tolerance is tightened by this in the program (3 deg).
+    path_constraint_samples : int
+        Path fractions each path constraint is constrained at, per span it covers (6).
+    num_control_points : int, optional
+        B-spline control points (cubic; None: 6 plus 3 per span, so that after the ends'
+        zero velocity and acceleration each span keeps about 3 free ones; when SNOPT
+        finds that program infeasible, once more with 1.5 times as many).
+    clearance_samples : int
+        Path fractions the clearance is constrained at (15).
+    max_iterations : int, optional
+        SNOPT's major iteration limit (None: SNOPT's default).
+    limits : TrajectoryLimits
+    """
+
+    tube_position_m: float = 0.15
+    tube_rotation_rad: float = math.radians(30.0)
+    tube_margin: float = 0.8
+    tube_samples: int = 20
+    con_position_tolerance_m: float = 0.0007
+    con_rotation_tolerance_rad: float = math.radians(0.3)
+    check_fraction: float = 0.5
+    pass_speed_m_s: float | None = 0.4
+    path_constraint_margin_rad: float = math.radians(3.0)
+    path_constraint_samples: int = 6
+    num_control_points: int | None = None
+    clearance_samples: int = 15
+    max_iterations: int | None = None
+    limits: TrajectoryLimits = TrajectoryLimits()
+
+
+@dataclasses.dataclass(frozen=True)
+class RefinementReport:
+    """What the optimization did.
+
+    Attributes
+    ----------
+    method : str
+        ``"refine"`` (seeded by the demonstrations, in the tube) or ``"plain"``.
+    status : str
+        ``"refined"`` (the plan is the optimized one) or ``"failed"`` (the unrefined
+        plan stands).
+    reason : str
+        Why it failed ("" when refined).
+    solve_time_s : float
+        The solver's time (0 when it did not run).
+    total_time_s : float
+        Setting up, solving and checking.
+    duration_s : float
+        The optimized motion's duration (nan when the solver failed).
+    unrefined_duration_s : float
+    tube_max_position_m, tube_max_rotation_rad : float
+        Largest deviation of the optimized (followed) path from the composed path at
+        matching path fractions (nan when the solver failed).
+    """
+
+    method: str
+    status: str
+    reason: str
+    solve_time_s: float
+    total_time_s: float
+    duration_s: float
+    unrefined_duration_s: float
+    tube_max_position_m: float
+    tube_max_rotation_rad: float
+
+    @property
+    def refined(self) -> bool:
+        return self.status == "refined"
+
+    def describe(self) -> str:
+        """One line for a person (``refined by trajectory optimization: 2.2 s instead of
+        6.3 s ...`` or why not)."""
+        if self.refined:
+            return (f"refined by trajectory optimization: {self.duration_s:.2f} s instead of "
+                    f"{self.unrefined_duration_s:.2f} s, at most {1000 * self.tube_max_position_m:.0f} mm / "
+                    f"{math.degrees(self.tube_max_rotation_rad):.1f} deg from the composed path "
+                    f"(solved in {self.solve_time_s:.2f} s)")
+        return f"refinement failed, the unrefined plan stands: {self.reason}"
+
+    def to_json(self) -> dict:
+        """The ``refinement`` object of ``plan --json`` (docs/cli.rst)."""
+        def number(x):
+            return None if not math.isfinite(x) else float(x)
+
+        return {"method": self.method, "status": self.status, "reason": self.reason,
+                "solve_time_s": float(self.solve_time_s), "total_time_s": float(self.total_time_s),
+                "duration_s": number(self.duration_s), "unrefined_duration_s": number(self.unrefined_duration_s),
+                "tube_max_position_m": number(self.tube_max_position_m),
+                "tube_max_rotation_rad": number(self.tube_max_rotation_rad)}
+
+
+# -- the composed path at path fractions ------------------------------------------------
+
+class _Reference:
+    """The composed plan's SE(3) path as a function of the path fraction ``s``: the
+    critical configurations at their fractions ``t_i / T``; within each span, the pose
+    at the same fraction of the span's arc length (translation plus 0.1 m per radian of
+    rotation), so a uniform progress in ``s`` is a uniform progress along the path."""
+
+    ROTATION_WEIGHT_M_PER_RAD = 0.1
+
+    def __init__(self, plan: TimedPlan):
+        T = plan.duration
+        self.fractions = np.array([plan.times[i] / T for i in plan.critical_indices])
+        X = plan.X_WE_list()
+        p = np.array([x.translation() for x in X])
+        steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        rotation = np.array([X[k].rotation().inverse().multiply(X[k + 1].rotation()).ToAngleAxis().angle()
+                             for k in range(len(X) - 1)])
+        length = np.concatenate([[0.0], np.cumsum(steps + self.ROTATION_WEIGHT_M_PER_RAD * rotation)])
+        # Each sample's path fraction: by arc length within its span.
+        s = np.zeros(len(X))
+        for j in range(len(plan.critical_indices) - 1):
+            a, b = plan.critical_indices[j], plan.critical_indices[j + 1]
+            span = length[b] - length[a]
+            local = (length[a:b + 1] - length[a]) / span if span > 0 else np.linspace(0.0, 1.0, b - a + 1)
+            s[a:b + 1] = self.fractions[j] + local * (self.fractions[j + 1] - self.fractions[j])
+        keep = np.concatenate([[True], np.diff(s) > 1e-12])
+        self._s = s[keep]
+        self._pose = PiecewisePose.MakeLinear(list(self._s), [x for x, k in zip(X, keep) if k])
+        self.critical_poses = [X[i] for i in plan.critical_indices]
+
+    def pose(self, s: float):
+        return self._pose.GetPose(float(np.clip(s, 0.0, self._s[-1])))
+
+
+def tube_deviation(reference_plan: TimedPlan, fractions: np.ndarray, X_WE: list) -> tuple[float, float]:
+    """Largest distance and angle of the poses ``X_WE`` at path fractions ``fractions``
+    from ``reference_plan``'s path at the same fractions (see :class:`_Reference`)."""
+    reference = _Reference(reference_plan)
+    position, rotation = 0.0, 0.0
+    for s, X in zip(fractions, X_WE):
+        R = reference.pose(s)
+        position = max(position, float(np.linalg.norm(X.translation() - R.translation())))
+        rotation = max(rotation, float(X.rotation().inverse().multiply(R.rotation()).ToAngleAxis().angle()))
+    return position, rotation
+
+
+def shape_deviation(reference_plan: TimedPlan, X_WE: list) -> tuple[float, float]:
+    """How far a path's poses ``X_WE`` stray from ``reference_plan``'s path as a set:
+    for each pose the nearest reference pose (by distance plus 0.1 m per radian, the
+    arc length's weighting of :class:`_Reference`; by position alone a twist in place
+    would pair a pose with the wrong turn of it), and the largest distance and angle
+    to it over the poses."""
+    X_ref = reference_plan.X_WE_list()
+    p_ref = np.array([x.translation() for x in X_ref])
+    q_ref = np.array([x.rotation().ToQuaternion().wxyz() for x in X_ref])
+    position, rotation = 0.0, 0.0
+    for X in X_WE:
+        d = np.linalg.norm(p_ref - X.translation(), axis=1)
+        angle = 2.0 * np.arccos(np.clip(np.abs(q_ref @ X.rotation().ToQuaternion().wxyz()), 0.0, 1.0))
+        k = int(np.argmin(d + _Reference.ROTATION_WEIGHT_M_PER_RAD * angle))
+        position, rotation = max(position, float(d[k])), max(rotation, float(angle[k]))
+    return position, rotation
+
+
+# -- the program and its check ------------------------------------------------------------
+
+def _path_constraint_bounds(result: PlanResult, fractions: np.ndarray, options: RefinementOptions) -> list[PoseBound]:
+    bounds = []
+    for constraint in result.task.path_constraints:
+        if constraint.kind != "orientation":
+            continue
+        R = rigid_transform_from_euler_zyx(np.zeros(3), constraint.euler_zyx).rotation()
+        angle = max(constraint.tolerance_rad - options.path_constraint_margin_rad, 0.5 * constraint.tolerance_rad)
+        a, b = fractions[constraint.con_from - 1], fractions[constraint.con_to - 1]
+        count = options.path_constraint_samples * (constraint.con_to - constraint.con_from) + 1
+        bounds += [PoseBound(float(s), R_WE=R, angle_rad=angle) for s in np.linspace(a, b, count)]
+    return bounds
+
+
+def _tube_bounds(reference: _Reference, options: RefinementOptions) -> list[PoseBound]:
+    bounds = []
+    for s in np.linspace(0.0, 1.0, options.tube_samples + 2)[1:-1]:
+        X = reference.pose(s)
+        bounds.append(PoseBound(float(s), p_W=X.translation(), radius_m=options.tube_margin * options.tube_position_m,
+                                R_WE=X.rotation(), angle_rad=options.tube_margin * options.tube_rotation_rad))
+    return bounds
+
+
+def _path_constraint_violation(result: PlanResult, plan: TimedPlan, X_WE: list, times: np.ndarray) -> str | None:
+    """The first path constraint the followed poses break, as a reason; else None."""
+    due = [plan.times[i] for i in plan.critical_indices]
+    for constraint in result.task.path_constraints:
+        if constraint.kind != "orientation":
+            continue
+        R = rigid_transform_from_euler_zyx(np.zeros(3), constraint.euler_zyx).rotation()
+        t_from, t_to = due[constraint.con_from - 1], due[constraint.con_to - 1]
+        angles = [X.rotation().inverse().multiply(R).ToAngleAxis().angle()
+                  for X, t in zip(X_WE, times) if t_from - 1e-9 <= t <= t_to + 1e-9]
+        if angles and max(angles) > constraint.tolerance_rad:
+            return (f"path constraint con_{constraint.con_from}..con_{constraint.con_to}: tool orientation "
+                    f"{math.degrees(max(angles)):.1f} deg > {math.degrees(constraint.tolerance_rad):g} deg")
+    return None
+
+
+def _duration_guess(guess, scene: OptimizationScene, limits: TrajectoryLimits) -> float:
+    """Twice the time the guess takes with every joint at its speed bound (the bound
+    with room for accelerating and braking), at least 0.5 s."""
+    q = np.array([guess.value(float(s))[:, 0] for s in np.linspace(0.0, 1.0, 101)])
+    travel = np.abs(np.diff(q, axis=0)).sum(axis=0)
+    speed = limits.velocity_fraction * scene.plant.GetVelocityUpperLimits()
+    return max(2.0 * float(np.max(travel / speed)), 0.5)
+
+
+def _optimize(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene | None,
+              options: RefinementOptions, method: str) -> PlanResult:
+    start = time.perf_counter()
+    unrefined = result.timed.duration if result.timed is not None else math.nan
+
+    def report(status, reason, solve=0.0, duration=math.nan, position=math.nan, rotation=math.nan):
+        return RefinementReport(method, status, reason, solve, time.perf_counter() - start, duration,
+                                unrefined, position, rotation)
+
+    if not result.planned or result.joint_path is None or not result.joint_path.executable:
+        return dataclasses.replace(result, refinement=report("failed", "no executable composed plan to refine"))
+    timed, path = result.timed, result.joint_path
+    scene = OptimizationScene(checker.scene.workcell) if scene is None else scene
+    reference = _Reference(timed)
+    fractions = reference.fractions
+    dt = checker.time_step
+    # The composed joint path at path fractions (its samples after the plan's end are the settling).
+    within = path.t <= timed.duration + 1e-9
+    s_path = path.t[within] / timed.duration
+    q_path = path.q[within]
+    q_goal = path.q[min(int(round(timed.duration / dt)), len(path.q) - 1)]
+    q_path[-1] = q_goal
+    bounds = _path_constraint_bounds(result, fractions, options)
+    if method == "refine":
+        bounds += _tube_bounds(reference, options)
+    targets = [PoseTarget(float(s), X, options.con_position_tolerance_m, options.con_rotation_tolerance_rad)
+               for s, X in zip(fractions[1:-1], reference.critical_poses[1:-1])]
+    count = options.num_control_points or 6 + 3 * (len(fractions) - 1)
+    # A program found locally infeasible (SNOPT info 13) is tried once more with 1.5 times
+    # the control points: a spline too stiff for the tube is the usual cause.
+    solve_time = 0.0
+    for attempt in (count, count + count // 2):
+        if method == "refine":
+            guess = fit_bspline(s_path, q_path, attempt)
+        else:
+            line = np.linspace(0.0, 1.0, 4 * attempt)
+            guess = fit_bspline(line, q_path[0] + line[:, None] * (q_goal - q_path[0]), attempt)
+        solved = optimize_joint_trajectory(
+            scene, guess, guess_duration_s=_duration_guess(guess, scene, options.limits), targets=targets,
+            bounds=bounds, clearance_samples=options.clearance_samples, limits=options.limits,
+            max_iterations=options.max_iterations)
+        solve_time += solved.solve_time_s
+        if solved.success or "Infeasible" not in solved.status or options.num_control_points:
+            break
+    solved = dataclasses.replace(solved, solve_time_s=solve_time)
+    if not solved.success:
+        return dataclasses.replace(result, refinement=report("failed", f"optimizer: {solved.status}",
+                                                             solved.solve_time_s))
+    t, q, X, indices, s_samples = sample_trajectory(scene, solved.trajectory, fractions, time_step=dt,
+                                                    tool_speed_m_s=options.limits.tool_speed_m_s,
+                                                    pass_speed_m_s=options.pass_speed_m_s)
+    poses = dual_quaternion_from_matrices(np.array([x.GetAsMatrix4() for x in X]))
+    plan = TimedPlan(t, poses, tuple(indices))
+    followed = checker.follow(plan, q[0])
+    duration = plan.duration
+
+    def failed(reason, position=math.nan, rotation=math.nan):
+        return dataclasses.replace(result, refinement=report("failed", reason, solved.solve_time_s, duration,
+                                                             position, rotation))
+
+    if not followed.executable:
+        b = followed.blocker
+        return failed(f"check: {b.reason}: {b.detail} (t = {b.time_s:.2f} s)")
+    limits = checker.limits
+    for con, (c_position, c_rotation) in enumerate(followed.critical_errors, start=1):
+        if c_position > options.check_fraction * limits.position_tolerance_m or \
+                c_rotation > options.check_fraction * limits.rotation_tolerance_rad:
+            return failed(f"check: misses con_{con} by {1000 * c_position:.1f} mm, "
+                          f"{math.degrees(c_rotation):.2f} deg (allowed: {options.check_fraction:g} of the "
+                          f"success tolerances)")
+    X_followed = [scene.X_WE(x) for x in followed.q]
+    s_followed = np.interp(np.minimum(followed.t, duration), t, s_samples)
+    position, rotation = tube_deviation(timed, s_followed, X_followed)
+    violation = _path_constraint_violation(result, plan, X_followed, followed.t)
+    if violation is not None:
+        return failed(f"check: {violation}", position, rotation)
+    if method == "refine" and (position > options.tube_position_m or rotation > options.tube_rotation_rad):
+        return failed(f"check: leaves the tube ({1000 * position:.0f} mm, {math.degrees(rotation):.1f} deg; "
+                      f"tube {1000 * options.tube_position_m:.0f} mm, "
+                      f"{math.degrees(options.tube_rotation_rad):.0f} deg)", position, rotation)
+    if not duration < unrefined:
+        return failed(f"not shorter ({duration:.2f} s, unrefined {unrefined:.2f} s)", position, rotation)
+    return dataclasses.replace(result, timed=plan, joint_path=followed,
+                               refinement=report("refined", "", solved.solve_time_s, duration, position, rotation))
+
+
+def refine_plan(result: PlanResult, checker: JointPathChecker, *, scene: OptimizationScene | None = None,
+                options: RefinementOptions = RefinementOptions()) -> PlanResult:
+    """``result`` with its timed plan and joint path replaced by the demonstration-guided
+    optimization's, or unchanged; either way with ``refinement`` (a
+    :class:`RefinementReport`).
+
+    Parameters
+    ----------
+    result : PlanResult
+        A plan made with ``checker`` (it has an executable joint path).
+    checker : JointPathChecker
+        The plan-time check of the task's work cell (also: the controller's period).
+    scene : OptimizationScene, optional
+        The work cell for the program (built from the checker's when not given; pass one
+        to reuse it across plans of the same work cell).
+    options : RefinementOptions
+    """
+    return _optimize(result, checker, scene, options, "refine")
+
+
+def plain_plan(result: PlanResult, checker: JointPathChecker, *, scene: OptimizationScene | None = None,
+               options: RefinementOptions = RefinementOptions()) -> PlanResult:
+    """The plain optimizer's plan, like :func:`refine_plan` but from a straight
+    joint-space line between ``result``'s start and goal configurations and without
+    the tube (the critical configurations pinned at the same path fractions)."""
+    return _optimize(result, checker, scene, options, "plain")

@@ -1,0 +1,397 @@
+"""Drake's kinematic trajectory optimization of a UR5e joint path in a work cell.
+
+:func:`optimize_joint_trajectory` sets up and solves one
+``KinematicTrajectoryOptimization`` (a clamped B-spline ``q(s)``, ``s`` in [0, 1], with a
+free duration ``T``; docs/method.rst, Refinement by trajectory optimization):
+
+- minimum duration (``AddDurationCost``), duration within bounds;
+- joint position bounds: the UR5e's limits, narrowed for the elbow (q3) and the wrist
+  (q5) to the singularity-free interval (``|sin q| >= margin``) the initial guess lies
+  in; bounds on the control points hold on the whole path (convex hull);
+- joint speed and acceleration bounds (on the whole path, by the same property);
+- zero path velocity and acceleration at both ends (the arm starts and ends at rest);
+- pose targets (:class:`PoseTarget`: a position box and an orientation cone of E at a
+  fixed path fraction), pose bounds along the path (:class:`PoseBound`: E's distance
+  to a point and its angle to a rotation, at a fixed path fraction: the task's
+  orientation constraints and the demonstration tube);
+- clearance: ``MinimumDistanceLowerBoundConstraint`` at evenly spread path fractions on
+  :class:`OptimizationScene`, the work cell's geometry with every robot and tool
+  geometry checked against every obstacle, shell and the table (the base and shoulder
+  links, which stand on the table, excepted).
+
+Constraints at path fractions hold at those samples only: callers sample densely and
+keep margins, and check the result (``planning/refinement.py`` runs the joint-path
+check on it). :func:`sample_trajectory` turns the solution into 10 ms samples, with
+every target on a sample and the tool speed bounded.
+
+Not for: choosing targets, tubes or seeds from a plan (``planning/refinement.py``),
+following a plan with the controller's law (``joint_path.py``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Sequence
+
+import numpy as np
+from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
+from pydrake.math import BsplineBasis, RigidTransform, RotationMatrix
+from pydrake.multibody.inverse_kinematics import (
+    MinimumDistanceLowerBoundConstraint,
+    OrientationConstraint,
+    PointToPointDistanceConstraint,
+    PositionConstraint,
+)
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.planning import KinematicTrajectoryOptimization
+from pydrake.solvers import SnoptSolver, SolverOptions
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.trajectories import BsplineTrajectory
+
+from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, add_ur5e
+from drake_lfd.robot.scene import add_scene
+from drake_lfd.robot.workcell import Workcell
+
+__all__ = [
+    "TrajectoryLimits",
+    "PoseTarget",
+    "PoseBound",
+    "OptimizationScene",
+    "OptimizedTrajectory",
+    "fit_bspline",
+    "optimize_joint_trajectory",
+    "sample_trajectory",
+]
+
+# A loose optimality tolerance: a feasible, nearly minimum-time motion is the goal, and
+# SNOPT's default (1e-6) spends most of the solve shaving the last hundredths of a second.
+_SNOPT_OPTIONS = {"Iterations limit": 100000, "Major optimality tolerance": 1e-2}
+# Links standing on the table: never checked against it (as in joint_path.py).
+_ON_TABLE_LINKS = ("base_link", "shoulder_link")
+
+
+@dataclasses.dataclass(frozen=True)
+class TrajectoryLimits:
+    """What the optimized motion keeps to.
+
+    Attributes
+    ----------
+    velocity_fraction : float
+        Joint speeds within this fraction of the UR5e's limits (0.65: the controller
+        scales its command to 0.7 of them, so the feedback keeps room).
+    acceleration_rad_s2 : float
+        Joint accelerations (8 rad/s^2).
+    tool_speed_m_s : float
+        E's speed (1.5 m/s), enforced on the samples by slowing the motion uniformly.
+    clearance_m : float
+        Least signed distance of any robot or tool geometry to any box or the table at
+        the clearance samples (0.02: the check demands 0.01 everywhere, and the path
+        between samples may come closer).
+    singularity_margin : float
+        Least ``|sin q3|`` and ``|sin q5|`` (0.15; the check demands 0.06, and the
+        controller's path near a singularity strays from the optimized joints).
+    min_duration_s, max_duration_s : float
+        Bounds of the duration.
+    """
+
+    velocity_fraction: float = 0.65
+    acceleration_rad_s2: float = 8.0
+    tool_speed_m_s: float = 1.5
+    clearance_m: float = 0.02
+    singularity_margin: float = 0.15
+    min_duration_s: float = 0.2
+    max_duration_s: float = 60.0
+
+
+@dataclasses.dataclass(frozen=True)
+class PoseTarget:
+    """E at ``X_WE`` at path fraction ``s``: position within ``position_tolerance_m``
+    along each axis of W, rotation within ``rotation_tolerance_rad``."""
+
+    s: float
+    X_WE: RigidTransform
+    position_tolerance_m: float
+    rotation_tolerance_rad: float
+
+
+@dataclasses.dataclass(frozen=True)
+class PoseBound:
+    """At path fraction ``s``: E within ``radius_m`` of ``p_W`` (None: free) and within
+    ``angle_rad`` of ``R_WE`` (None: free)."""
+
+    s: float
+    p_W: np.ndarray | None = None
+    radius_m: float | None = None
+    R_WE: RotationMatrix | None = None
+    angle_rad: float | None = None
+
+
+class OptimizationScene:
+    """The work cell on a plant whose collision filters leave exactly the pairs to keep
+    clear: robot and tool against obstacles, shells and (but for the links standing on
+    it) the table; robot geometries among themselves are not checked.
+
+    Attributes
+    ----------
+    plant, scene_graph, model, diagram, context, plant_context, frame_E
+    """
+
+    def __init__(self, workcell: Workcell):
+        builder = DiagramBuilder()
+        self.plant, self.scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+        self.model = add_ur5e(self.plant, X_WB=workcell.X_WB, X_tool0_E=workcell.X_tool0_E)
+        # Shells join the obstacles here: in the station they are filtered out of contact,
+        # which would hide them from the distance constraint.
+        shells = tuple(dataclasses.replace(box, name=f"shell_{i}_{box.name}")
+                       for i, box in enumerate(workcell.safety_shells))
+        geometry = add_scene(self.plant, self.scene_graph, model=self.model,
+                             obstacles=tuple(workcell.obstacles) + shells, table=workcell.table,
+                             tool=workcell.tool)
+        manager = self.scene_graph.collision_filter_manager()
+        robot = GeometrySet(list(geometry.robot_geometry_ids))
+        manager.Apply(CollisionFilterDeclaration().ExcludeWithin(robot))
+        if geometry.table_geometry_id is not None:
+            on_table = [g for g in geometry.robot_geometry_ids
+                        if geometry.names.get(g, "").split("/")[0] in _ON_TABLE_LINKS]
+            if on_table:
+                manager.Apply(CollisionFilterDeclaration().ExcludeBetween(
+                    GeometrySet(on_table), GeometrySet([geometry.table_geometry_id])))
+        self.has_boxes = bool(geometry.keep_out_geometry_ids) or geometry.table_geometry_id is not None
+        self.plant.Finalize()
+        self.diagram = builder.Build()
+        self.context = self.diagram.CreateDefaultContext()
+        self.plant_context = self.plant.GetMyMutableContextFromRoot(self.context)
+        self.frame_E = self.plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)
+
+    def X_WE(self, q: np.ndarray) -> RigidTransform:
+        """E's pose at configuration ``q`` (6,)."""
+        self.plant.SetPositions(self.plant_context, self.model, np.asarray(q, dtype=float))
+        return self.plant.CalcRelativeTransform(self.plant_context, self.plant.world_frame(), self.frame_E)
+
+
+@dataclasses.dataclass(frozen=True)
+class OptimizedTrajectory:
+    """The solver's answer.
+
+    Attributes
+    ----------
+    trajectory : BsplineTrajectory or None
+        ``q(t)``, t in [0, duration] (None when the solver failed).
+    success : bool
+    status : str
+        The solver's result (``SNOPT: ...``), for a failure's reason.
+    solve_time_s : float
+    """
+
+    trajectory: BsplineTrajectory | None
+    success: bool
+    status: str
+    solve_time_s: float
+
+    @property
+    def duration(self) -> float:
+        return float(self.trajectory.end_time()) if self.trajectory is not None else math.nan
+
+
+def fit_bspline(s: np.ndarray, q: np.ndarray, num_control_points: int, order: int = 4) -> BsplineTrajectory:
+    """The clamped uniform B-spline in ``s`` (on [0, 1]) with ``num_control_points``
+    control points closest (least squares) to the samples ``q`` (m, 6) at ``s`` (m,),
+    its ends on the first and last sample."""
+    basis = BsplineBasis(order, num_control_points)
+    A = np.array([[basis.EvaluateBasisFunctionI(i, float(x)) for i in range(num_control_points)] for x in s])
+    control, *_ = np.linalg.lstsq(A, np.asarray(q, dtype=float), rcond=None)
+    control[0], control[-1] = q[0], q[-1]
+    return BsplineTrajectory(basis, [c.reshape(-1, 1) for c in control])
+
+
+def _singularity_free_interval(values: np.ndarray, margin: float) -> tuple[float, float] | None:
+    """The interval ``[k pi + asin(margin), (k + 1) pi - asin(margin)]`` holding every
+    value, or None when the values cross a singularity."""
+    a = math.asin(margin)
+    k = np.floor(np.asarray(values) / math.pi)
+    if not np.all(k == k[0]):
+        return None
+    low, high = k[0] * math.pi + a, (k[0] + 1) * math.pi - a
+    if np.min(values) < low or np.max(values) > high:
+        return None
+    return float(low), float(high)
+
+
+def optimize_joint_trajectory(
+    scene: OptimizationScene,
+    guess: BsplineTrajectory,
+    guess_duration_s: float,
+    *,
+    targets: Sequence[PoseTarget] = (),
+    bounds: Sequence[PoseBound] = (),
+    clearance_samples: int = 40,
+    limits: TrajectoryLimits = TrajectoryLimits(),
+    max_iterations: int | None = None,
+) -> OptimizedTrajectory:
+    """Solves the program of the module docstring from ``guess`` (a B-spline in path
+    fraction, on [0, 1], its ends the fixed start and goal configurations).
+
+    Parameters
+    ----------
+    scene : OptimizationScene
+    guess : BsplineTrajectory
+        Initial guess ``q(s)``; its number of control points and order are the program's.
+    guess_duration_s : float
+    targets, bounds : sequences of PoseTarget, PoseBound
+    clearance_samples : int
+        Path fractions (evenly spread, ends included) the clearance is constrained at.
+    limits : TrajectoryLimits
+    max_iterations : int, optional
+        SNOPT's major iteration limit (default: SNOPT's).
+    """
+    plant, context, frame_E = scene.plant, scene.plant_context, scene.frame_E
+    world = plant.world_frame()
+    n = plant.num_positions()
+    control = np.hstack(guess.control_points())  # (n, num_control_points)
+    trajopt = KinematicTrajectoryOptimization(n, control.shape[1], guess.basis().order(), guess_duration_s)
+    trajopt.AddDurationCost(1.0)
+    trajopt.AddDurationConstraint(limits.min_duration_s, limits.max_duration_s)
+    lower, upper = plant.GetPositionLowerLimits().copy(), plant.GetPositionUpperLimits().copy()
+    for j in (2, 4):  # elbow and wrist: stay on the side of the singularity both ends are on
+        interval = _singularity_free_interval(control[j, [0, -1]], limits.singularity_margin)
+        if interval is not None:
+            lower[j], upper[j] = max(lower[j], interval[0]), min(upper[j], interval[1])
+    trajopt.AddPositionBounds(lower, upper)
+    control = np.clip(control, lower[:, None], upper[:, None])
+    speed = limits.velocity_fraction * plant.GetVelocityUpperLimits()
+    trajopt.AddVelocityBounds(-speed, speed)
+    trajopt.AddAccelerationBounds(np.full(n, -limits.acceleration_rad_s2), np.full(n, limits.acceleration_rad_s2))
+    q_start, q_goal = control[:, 0], control[:, -1]
+    trajopt.AddPathPositionConstraint(q_start, q_start, 0.0)
+    trajopt.AddPathPositionConstraint(q_goal, q_goal, 1.0)
+    trajopt.AddPathVelocityConstraint(np.zeros(n), np.zeros(n), 0.0)
+    trajopt.AddPathVelocityConstraint(np.zeros(n), np.zeros(n), 1.0)
+    # Zero acceleration too: the servos start and settle without a jolt (the goal is
+    # judged the moment it is due).
+    trajopt.AddPathAccelerationConstraint(np.zeros(n), np.zeros(n), 0.0)
+    trajopt.AddPathAccelerationConstraint(np.zeros(n), np.zeros(n), 1.0)
+    for target in targets:
+        p = target.X_WE.translation()
+        tolerance = np.full(3, target.position_tolerance_m)
+        trajopt.AddPathPositionConstraint(
+            PositionConstraint(plant, world, p - tolerance, p + tolerance, frame_E, np.zeros(3), context), target.s)
+        trajopt.AddPathPositionConstraint(
+            OrientationConstraint(plant, world, target.X_WE.rotation(), frame_E, RotationMatrix(),
+                                  target.rotation_tolerance_rad, context), target.s)
+    for bound in bounds:
+        if bound.p_W is not None:
+            trajopt.AddPathPositionConstraint(
+                PointToPointDistanceConstraint(plant, world, np.asarray(bound.p_W, dtype=float), frame_E,
+                                               np.zeros(3), 0.0, bound.radius_m, context), bound.s)
+        if bound.R_WE is not None:
+            trajopt.AddPathPositionConstraint(
+                OrientationConstraint(plant, world, bound.R_WE, frame_E, RotationMatrix(), bound.angle_rad, context),
+                bound.s)
+    if scene.has_boxes and clearance_samples > 0:
+        clearance = MinimumDistanceLowerBoundConstraint(plant, limits.clearance_m, context, None, 0.05)
+        for s in np.linspace(0.0, 1.0, clearance_samples):
+            trajopt.AddPathPositionConstraint(clearance, float(s))
+    prog = trajopt.get_mutable_prog()
+    # The guess in time: its duration is the initial guess of T.
+    knots = np.asarray(guess.basis().knots()) * guess_duration_s
+    trajopt.SetInitialGuess(BsplineTrajectory(BsplineBasis(guess.basis().order(), knots),
+                                              [c.reshape(-1, 1) for c in control.T]))
+    options = SolverOptions()
+    for name, value in _SNOPT_OPTIONS.items():
+        options.SetOption(SnoptSolver.id(), name, value)
+    if max_iterations is not None:
+        options.SetOption(SnoptSolver.id(), "Major iterations limit", int(max_iterations))
+    solver = SnoptSolver()
+    start = time.perf_counter()
+    result = solver.Solve(prog, None, options)
+    elapsed = time.perf_counter() - start
+    details = result.get_solver_details()
+    status = f"SNOPT info {details.info}" if hasattr(details, "info") else str(result.get_solution_result())
+    if not result.is_success():
+        return OptimizedTrajectory(None, False, f"{result.get_solution_result()} ({status})", elapsed)
+    return OptimizedTrajectory(trajopt.ReconstructTrajectory(result), True, status, elapsed)
+
+
+def _tool_speed(scene: OptimizationScene, trajectory: BsplineTrajectory, tau: float, h: float = 1e-3) -> float:
+    """E's speed at time ``tau`` of ``trajectory`` (central difference), m/s."""
+    a = max(tau - h, trajectory.start_time())
+    b = min(tau + h, trajectory.end_time())
+    p_a = scene.X_WE(trajectory.value(a)[:, 0]).translation()
+    p_b = scene.X_WE(trajectory.value(b)[:, 0]).translation()
+    return float(np.linalg.norm(p_b - p_a) / (b - a))
+
+
+def _slowed_clock(scene: OptimizationScene, trajectory: BsplineTrajectory, due: np.ndarray,
+                  pass_speed_m_s: float | None, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """A retiming that passes each of the inner times ``due`` at most at
+    ``pass_speed_m_s``: the motion's rate is multiplied by ``1 - (1 - rho) cos^2``
+    bumps ``window_s`` wide on either side of each (``rho``: the needed slow-down), so
+    the path stays the same and speeds only drop. Returns the original times ``tau``
+    (a 1 ms grid) and the new clock at them."""
+    T = float(trajectory.end_time())
+    tau = np.linspace(0.0, T, max(int(np.ceil(T / 1e-3)), 2) + 1)
+    rate = np.ones_like(tau)
+    if pass_speed_m_s is not None:
+        for t_i in due[1:-1]:
+            speed = _tool_speed(scene, trajectory, float(t_i))
+            rho = min(1.0, pass_speed_m_s / speed) if speed > 0 else 1.0
+            x = np.clip((tau - t_i) / window_s, -1.0, 1.0)
+            rate *= 1.0 - (1.0 - rho) * np.cos(0.5 * np.pi * x) ** 2
+    clock = np.concatenate([[0.0], np.cumsum(0.5 * (1.0 / rate[1:] + 1.0 / rate[:-1]) * np.diff(tau))])
+    return tau, clock
+
+
+def sample_trajectory(
+    scene: OptimizationScene,
+    trajectory: BsplineTrajectory,
+    fractions: Sequence[float],
+    *,
+    time_step: float,
+    tool_speed_m_s: float,
+    pass_speed_m_s: float | None = None,
+    slow_window_s: float = 0.15,
+) -> tuple[np.ndarray, np.ndarray, list[RigidTransform], list[int], np.ndarray]:
+    """Samples ``trajectory`` every ``time_step`` with each path fraction of
+    ``fractions`` (the targets, in order, 0 and 1 included) on a sample.
+
+    The motion is retimed along its path, never faster: around each inner fraction it
+    slows to pass it at most at ``pass_speed_m_s`` (None: as optimized; see
+    :func:`_slowed_clock`: a closed loop lags the command by a few milliseconds, so
+    the speed at a critical configuration is what its error there grows with); each
+    stretch between consecutive fractions is stretched to a whole number of steps; then
+    the whole motion is slowed uniformly until E's speed (finite differences of the
+    samples) is within ``tool_speed_m_s`` (uniform slowing keeps every path constraint
+    and lowers every speed and acceleration).
+
+    Returns
+    -------
+    t : array (m,)
+    q : array (m, 6)
+    X_WE : list of RigidTransform, one per sample
+    indices : list of int
+        The sample of each fraction.
+    s : array (m,)
+        Each sample's path fraction.
+    """
+    T = float(trajectory.end_time())
+    fractions = np.asarray(fractions, dtype=float)
+    tau, clock = _slowed_clock(scene, trajectory, fractions * T, pass_speed_m_s, slow_window_s)
+    clock_due = np.interp(fractions * T, tau, clock)
+    scale = 1.0
+    for _ in range(5):
+        steps = np.maximum(np.ceil(np.diff(clock_due) * scale / time_step - 1e-9), 1).astype(int)
+        indices = np.concatenate([[0], np.cumsum(steps)]).astype(int)
+        t = np.arange(indices[-1] + 1) * time_step
+        # Each sample's clock: linear within each stretch; then its original time.
+        sample_clock = np.interp(np.arange(indices[-1] + 1), indices, clock_due)
+        sample_tau = np.interp(sample_clock, clock, tau)
+        q = np.array([trajectory.value(float(x))[:, 0] for x in sample_tau])
+        X = [scene.X_WE(x) for x in q]
+        p = np.array([x.translation() for x in X])
+        peak = float(np.max(np.linalg.norm(np.diff(p, axis=0), axis=1)) / time_step) if len(p) > 1 else 0.0
+        if peak <= tool_speed_m_s:
+            break
+        scale *= 1.02 * peak / tool_speed_m_s
+    return t, q, X, [int(i) for i in indices], sample_tau / T

@@ -1,0 +1,144 @@
+"""Refinement by trajectory optimization (``planning/refinement.py``): the refined plan is
+checked executable, inside the tube, shorter, and meets every critical configuration;
+a failure leaves the unrefined plan with a reason; ``plan --refine --json``; closed-loop
+trials with refinement."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from cli_subprocess import run_cli
+from drake_lfd.core.resources import scenarios_directory
+from drake_lfd.core.tasks import draw_trial, rigid_transform_from_euler_zyx
+from drake_lfd.diagrams.pipeline import joint_path_checker
+from drake_lfd.experiments.judging import SUCCESS_POSITION_TOLERANCE_M, SUCCESS_ROTATION_TOLERANCE_RAD
+from drake_lfd.experiments.simulation import run_trial
+from drake_lfd.io.library import Library, library_features
+from drake_lfd.io.plan_json import plan_json
+from drake_lfd.io.task_files import load_task
+from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.refinement import (
+    OptimizationScene,
+    RefinementOptions,
+    plain_plan,
+    refine_plan,
+    shape_deviation,
+)
+from drake_lfd.robot.workcell import Workcell
+
+SIMS = scenarios_directory()
+
+
+@pytest.fixture(scope="module")
+def transferring():
+    """The composed plan of transferring (seed 0), its checker and the program's scene."""
+    task = load_task(SIMS / "transferring.yaml")
+    trial = draw_trial(task, 0)
+    workcell = Workcell.of(trial)
+    checker = joint_path_checker(workcell, task.simulation)
+    result = plan_task(trial, library_features(Library.open("paper5")), floor_z=workcell.planner_floor,
+                       checker=checker, cost="fidelity")
+    assert result.planned and result.joint_path.executable
+    return result, checker, OptimizationScene(workcell)
+
+
+@pytest.fixture(scope="module")
+def refined(transferring):
+    result, checker, scene = transferring
+    return refine_plan(result, checker, scene=scene)
+
+
+def test_refined_transferring_is_executable_in_the_tube_and_shorter(transferring, refined):
+    composed, checker, _ = transferring
+    report = refined.refinement
+    assert report.status == "refined", report.reason
+    assert refined.joint_path is not composed.joint_path and refined.joint_path.executable
+    # The check ran on the refined plan itself: its joint path spans the refined motion.
+    assert refined.joint_path.t[-1] >= refined.timed.duration - 1e-9
+    assert refined.timed.duration == pytest.approx(report.duration_s)
+    assert refined.timed.duration < composed.timed.duration
+    options = RefinementOptions()
+    assert report.tube_max_position_m <= options.tube_position_m
+    assert report.tube_max_rotation_rad <= options.tube_rotation_rad
+    # Independently: no refined pose is farther from the composed path, as a set, than the
+    # tube allows at matching fractions.
+    position, _ = shape_deviation(composed.timed, refined.timed.X_WE_list())
+    assert position <= options.tube_position_m
+
+
+def test_refined_transferring_meets_every_critical_configuration_and_keeps_the_cup_upright(refined):
+    task = refined.task
+    X = refined.timed.X_WE_list()
+    assert len(refined.timed.critical_indices) == len(task.critical_configurations)
+    for i, (con, index) in enumerate(zip(task.critical_configurations, refined.timed.critical_indices)):
+        X_con = rigid_transform_from_euler_zyx(con.p, refined.euler_zyx[i])
+        assert np.linalg.norm(X[index].translation() - X_con.translation()) < SUCCESS_POSITION_TOLERANCE_M
+        angle = X[index].rotation().inverse().multiply(X_con.rotation()).ToAngleAxis().angle()
+        assert angle < SUCCESS_ROTATION_TOLERANCE_RAD
+    for position, rotation in refined.joint_path.critical_errors:  # the followed path, when due
+        assert position < SUCCESS_POSITION_TOLERANCE_M and rotation < SUCCESS_ROTATION_TOLERANCE_RAD
+    (upright,) = task.path_constraints
+    R_up = rigid_transform_from_euler_zyx(np.zeros(3), upright.euler_zyx).rotation()
+    assert max(x.rotation().inverse().multiply(R_up).ToAngleAxis().angle() for x in X) <= upright.tolerance_rad
+
+
+def test_the_plain_optimizer_is_the_peer_without_a_tube(transferring, refined):
+    composed, checker, scene = transferring
+    plain = plain_plan(composed, checker, scene=scene)
+    assert plain.refinement.method == "plain"
+    assert plain.refinement.status == "refined", plain.refinement.reason
+    # Same start and goal configurations as the composed plan.
+    np.testing.assert_allclose(plain.joint_path.q[0], composed.joint_path.q[0])
+    assert plain.timed.duration < composed.timed.duration
+
+
+@pytest.mark.parametrize("options, expected", [
+    (RefinementOptions(tube_position_m=1e-4, tube_rotation_rad=math.radians(0.01)), ""),
+    (RefinementOptions(max_iterations=1), "optimizer"),
+])
+def test_a_failed_refinement_leaves_the_unrefined_plan_and_says_why(transferring, options, expected):
+    composed, checker, scene = transferring
+    result = refine_plan(composed, checker, scene=scene, options=options)
+    report = result.refinement
+    assert report.status == "failed" and report.reason and expected in report.reason
+    assert result.timed is composed.timed and result.joint_path is composed.joint_path
+    document = json.loads(json.dumps(plan_json(result)))
+    assert document["refinement"]["status"] == "failed"
+    assert document["refinement"]["reason"] == report.reason
+    assert document["poses"][-1]["t"] == pytest.approx(composed.timed.duration)
+
+
+def test_a_plan_without_refinement_has_no_refinement_object(transferring):
+    composed, _, _ = transferring
+    assert "refinement" not in plan_json(composed)
+
+
+def test_plan_refine_json_on_the_command_line(tmp_path):
+    out = tmp_path / "plan.json"
+    status, stdout, stderr, _, _ = run_cli("plan", SIMS / "transferring.yaml", "--library", "paper5", "--refine",
+                                           "--json", out, timeout=180)
+    assert status == 0, stderr
+    document = json.loads(out.read_text())
+    refinement = document["refinement"]
+    assert refinement["method"] == "refine" and refinement["status"] in ("refined", "failed")
+    assert ("refined by trajectory optimization" in stdout) == (refinement["status"] == "refined")
+    if refinement["status"] == "refined":
+        assert document["poses"][-1]["t"] == pytest.approx(refinement["duration_s"])
+        assert refinement["duration_s"] < refinement["unrefined_duration_s"]
+        assert document["joint_trajectory"]["t"][-1] >= refinement["duration_s"] - 1e-9
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, library", [
+    ("transferring", "paper5"), ("filling_pouring", "paper5"), ("assembling", "paper6")])
+def test_one_refined_closed_loop_trial_per_paper_task_succeeds(name, library):
+    task = load_task(SIMS / f"{name}.yaml")
+    outcome = run_trial(task, library_features(Library.open(library)), trial=1, seed=0, cost="fidelity",
+                        refine=True)
+    assert outcome.plan.refinement is not None
+    assert outcome.plan.refinement.status == "refined", outcome.plan.refinement.reason
+    assert outcome.success, outcome.failures
+    assert outcome.run.critical_errors[-1].time_s - outcome.run.critical_errors[0].time_s == pytest.approx(
+        outcome.plan.timed.duration, abs=0.02)

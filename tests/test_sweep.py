@@ -1,0 +1,196 @@
+"""``drake-lfd sweep`` and ``--workers``: trials on dask worker processes give the rows a
+single process gives, an interrupted sweep resumes to the same table, and bad arguments
+are refused with one line.
+
+Base placements used: the transferring task's own base (-0.2, 0.7) succeeds; at
+(-0.1, 0.7) con_1 is out of reach, so those trials fail fast at planning time.
+"""
+
+import json
+import signal
+import subprocess
+import time
+
+import pytest
+
+from cli_subprocess import cli_command, cli_env, stderr_lines
+from drake_lfd import cli
+from drake_lfd.cli.app import build_parser
+from drake_lfd.core.resources import scenarios_directory
+from drake_lfd.experiments.sweep import failure_kind, parse_axis, row_key
+from drake_lfd.io.json_lines import read_json_lines
+
+TRANSFERRING = scenarios_directory() / "transferring.yaml"
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+INPUTS = {"task", "library", "options", "policy", "base_x", "base_y", "base_z", "base_yaw_deg", "variables",
+          "trial", "seed"}
+TRIAL_FIELDS = {"success", "failures", "status", "critical_configurations", "composition", "critical_errors",
+                "min_shell_distance_m", "max_joint_speed_fraction", "t", "q"}
+
+
+def deterministic(value):
+    """``value`` without wall-clock fields (they differ between runs)."""
+    if isinstance(value, dict):
+        return {k: deterministic(v) for k, v in value.items() if "wall" not in k}
+    if isinstance(value, list):
+        return [deterministic(v) for v in value]
+    return value
+
+
+def sweep_args(out, *extra):
+    return ["sweep", str(TRANSFERRING), "--library", "paper5", "--out", str(out), *map(str, extra)]
+
+
+def table(out):
+    return sorted((deterministic(row) for row in read_json_lines(out / "sweep.jsonl")), key=row_key)
+
+
+@pytest.mark.slow
+def test_a_sweep_on_two_workers_writes_the_rows_and_figures_of_one_process(tmp_path, capsys):
+    grid = ["--base-grid", "-0.2:-0.1:2", "0.7:0.7:1", "--trials", 2]
+    parallel, sequential = tmp_path / "two", tmp_path / "one"
+    assert cli.main(sweep_args(parallel, *grid, "--workers", 2)) == 0
+    assert cli.main(sweep_args(sequential, *grid, "--workers", 1)) == 0
+    out = capsys.readouterr().out
+    assert "4 trials; 4 to run on 2 worker(s)" in out and "4 trials; 4 to run on 1 worker(s)" in out
+    rows = read_json_lines(parallel / "sweep.jsonl")
+    assert len(rows) == 4
+    for row in rows:
+        assert INPUTS | TRIAL_FIELDS <= set(row)
+        assert row["options"]["planner"] == "exact" and row["base_y"] == 0.7 and row["base_z"] == 0.0
+        assert set(row["variables"]) == {"z"} and 0.1 <= row["variables"]["z"] <= 0.5
+    assert sorted((r["base_x"], r["trial"], r["seed"]) for r in rows) == [
+        (-0.2, 1, 0), (-0.2, 2, 1), (-0.1, 1, 0), (-0.1, 2, 1)]
+    by_base = {r["base_x"]: [] for r in rows}
+    for row in rows:
+        by_base[row["base_x"]].append(row)
+    assert all(r["success"] for r in by_base[-0.2])
+    assert not any(r["success"] for r in by_base[-0.1])
+    assert all(failure_kind(r["failures"][0]) == "no executable plan (reach)" for r in by_base[-0.1])
+    # same seed, same concrete trial at every placement
+    assert {r["seed"]: r["variables"] for r in by_base[-0.2]} == {r["seed"]: r["variables"] for r in by_base[-0.1]}
+    assert table(parallel) == table(sequential)  # whichever process ran each trial
+    summary = json.loads((parallel / "summary.json").read_text())
+    assert summary["rows"] == 4 and summary["success_count"] == 2 and summary["workers"] == 2
+    assert [(e["base_x"], e["successes"], e["trials"]) for e in summary["by_base"]] == [(-0.2, 2, 2), (-0.1, 0, 2)]
+    assert [e["base_x"] for e in summary["best"]] == [-0.2]
+    assert summary["failure_kinds"] == {"no executable plan (reach)": 2}
+    assert deterministic(summary) == deterministic({**json.loads((sequential / "summary.json").read_text()),
+                                                     "workers": 2})
+    for name in ("success_by_base.png", "success_by_variable.png", "failure_reasons.png"):
+        assert (parallel / name).read_bytes()[:8] == PNG_MAGIC, name
+
+
+def finished_rows(path):
+    return path.read_text().count("\n") if path.exists() else 0
+
+
+@pytest.mark.slow
+def test_an_interrupted_sweep_resumes_to_the_table_of_an_uninterrupted_one(tmp_path):
+    options = ["--trials", 4, "--workers", 2]
+    interrupted = tmp_path / "interrupted"
+    process = subprocess.Popen(cli_command(*sweep_args(interrupted, *options)), stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=cli_env())
+    deadline = time.monotonic() + 120
+    while finished_rows(interrupted / "sweep.jsonl") < 1 and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert process.poll() is None, "the sweep ended before its first row was on disk"
+    process.send_signal(signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == 1
+    assert "Traceback" not in stderr and stderr_lines(stderr) == ["drake-lfd sweep: interrupted"]
+    kept = read_json_lines(interrupted / "sweep.jsonl")
+    assert 1 <= len(kept) < 4
+    assert f"{len(kept)} of 4 trials are in" in stdout and "--resume" in stdout
+    assert not (interrupted / "summary.json").exists()
+    assert cli.main(sweep_args(interrupted, *options, "--resume")) == 0
+    resumed = read_json_lines(interrupted / "sweep.jsonl")
+    assert resumed[:len(kept)] == kept and len(resumed) == 4  # kept rows untouched, only the rest ran
+    uninterrupted = tmp_path / "uninterrupted"
+    assert cli.main(sweep_args(uninterrupted, "--trials", 4, "--workers", 1)) == 0
+    assert table(interrupted) == table(uninterrupted)
+    first = json.loads((interrupted / "summary.json").read_text())
+    second = json.loads((uninterrupted / "summary.json").read_text())
+    assert deterministic(first)["by_base"] == deterministic(second)["by_base"]
+    # resuming a complete sweep runs nothing and rewrites the same table
+    assert cli.main(sweep_args(interrupted, *options, "--resume")) == 0
+    assert read_json_lines(interrupted / "sweep.jsonl") == resumed
+
+
+@pytest.mark.slow
+def test_simulate_on_two_workers_equals_one_process(tmp_path, capsys):
+    documents = {}
+    for workers in (2, 1):
+        out = tmp_path / f"w{workers}" / "out.json"
+        status = cli.main(["simulate", str(TRANSFERRING), "--library", "paper5", "--trials", "3", "--seed", "4",
+                           "--workers", str(workers), "--json", str(out)])
+        assert status in (0, 4)
+        documents[workers] = json.loads(out.read_text())
+        # the incremental file is in trial order too, one record per trial
+        assert [r["trial"] for r in read_json_lines(out.with_suffix(".jsonl"))] == [1, 2, 3]
+    assert [t["seed"] for t in documents[2]["trials"]] == [4, 5, 6]
+    assert deterministic(documents[2]) == deterministic(documents[1])
+    lines = [line.split(":")[0] for line in capsys.readouterr().out.splitlines() if line.startswith("trial ")]
+    assert lines == ["trial 1 (seed 4)", "trial 2 (seed 5)", "trial 3 (seed 6)"] * 2
+
+
+@pytest.mark.parametrize("grid, message", [
+    (["0:1:x", "0:0:1"], '--base-grid: "0:1:x" is not X0:X1:NX'),
+    (["0:1:2", "0:1"], '--base-grid: "0:1" is not Y0:Y1:NY'),
+    (["0:1:0", "0:0:1"], '--base-grid: "0:1:0": NX must be at least 1, got 0'),
+    (["0:1:1", "0:0:1"], '--base-grid: "0:1:1": one point needs X0 = X1'),
+    (["0:1:2"], "--base-grid: expected 2 to 4 axes"),
+    (["0:0:1", "0:0:1", "0:0:1", "0:0:1", "0:0:1"], "--base-grid: expected 2 to 4 axes"),
+    (["-0.3:nan:2", "0:0:1"], '--base-grid: "-0.3:nan:2": X0 and X1 must be finite numbers'),
+])
+def test_bad_base_grids_are_refused_with_one_line(tmp_path, capsys, grid, message):
+    assert cli.main(sweep_args(tmp_path / "out", "--base-grid", *grid)) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"drake-lfd sweep: error: {message}")
+    assert not (tmp_path / "out" / "sweep.jsonl").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["sweep", str(TRANSFERRING), "--library", "paper5", "--out", "OUT", "--workers", "0"],
+     "--workers: must be at least 1, got 0"),
+    (["simulate", str(TRANSFERRING), "--library", "paper5", "--workers", "0"], "--workers: must be at least 1, got 0"),
+    (["simulate", str(TRANSFERRING), "--library", "paper5", "--meshcat", "--workers", "2"],
+     "--meshcat: shows the trials one after another in one viewer: it needs --workers 1"),
+    (["paper", "--out", "OUT", "--workers", "0"], "--workers: must be at least 1, got 0"),
+])
+def test_bad_worker_counts_are_refused_with_one_line(tmp_path, capsys, args, message):
+    args = [str(tmp_path / "out") if a == "OUT" else a for a in args]
+    assert cli.main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"drake-lfd {args[0]}: error: {message}"]
+
+
+def test_negative_axes_are_values_not_options():
+    assert parse_axis("-0.3:-0.1:3") == pytest.approx((-0.3, -0.2, -0.1))
+    args = build_parser().parse_args(sweep_args("OUT", "--base-grid", "-0.3:-0.1:3", "-1e-1:0:2", "0:0:1",
+                                                    "-90:90:3"))
+    assert args.base_grid == ["-0.3:-0.1:3", "-1e-1:0:2", "0:0:1", "-90:90:3"]
+
+
+def test_failure_kinds_group_the_reasons():
+    assert failure_kind("no executable plan: con_1 -> con_2 (stacking): reach: no collision-free joint "
+                        "configuration reaches con_1") == "no executable plan (reach)"
+    assert failure_kind("demonstration requested: con_2 -> con_3: 90 deg about x") == "demonstration requested"
+    assert failure_kind("con_3: position error 7.1 mm > 5 mm (t = 4.20 s)") == "critical configuration position error"
+    assert failure_kind("path constraint con_1..con_4: tool orientation 11.0 deg from euler_zyx [0.0, -1.5708, "
+                        "0.0] > 10 deg (t = 2.91 s)") == "path constraint"
+    assert failure_kind("safety shell safety_shell penetrated by wrist_3 (signed distance -3.0 mm at t = 1.00 s)"
+                        ) == "penetration"
+    assert failure_kind("elbow: speed 3.30 rad/s > limit 3.14 rad/s (t = 1.00 s)") == "joint speed limit"
+    assert failure_kind("something new") == "other"
+
+
+def test_resuming_drops_a_last_line_cut_short_and_appends_after_the_rest(tmp_path):
+    from drake_lfd.cli.sweep import _ContinuedJsonLines
+
+    path = tmp_path / "sweep.jsonl"
+    path.write_text('{"trial": 1}\n{"trial": 2}\n{"trial": 3, "t"')  # an interrupt mid-write
+    with _ContinuedJsonLines(path) as rows:
+        rows.append({"trial": 3})
+    assert read_json_lines(path) == [{"trial": 1}, {"trial": 2}, {"trial": 3}]
+    assert path.read_text().count("\n") == 3 and path.read_text().endswith("}\n")
