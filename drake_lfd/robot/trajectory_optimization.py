@@ -79,8 +79,10 @@ class TrajectoryLimits:
     Attributes
     ----------
     velocity_fraction : float
-        Joint speeds within this fraction of the UR5e's limits (0.65: the controller
-        scales its command to 0.7 of them, so the feedback keeps room).
+        Joint speeds within this fraction of the UR5e's limits (0.65, chosen when the
+        controller bounded its command at 0.7 of them; it now bounds it at 0.97, but 0.9,
+        as the composed plan's timing uses, makes SNOPT report the plain optimizer's
+        program on transferring infeasible, so 0.65 stays).
     acceleration_rad_s2 : float
         Joint accelerations (8 rad/s^2).
     tool_speed_m_s : float
@@ -314,31 +316,36 @@ def optimize_joint_trajectory(
     return OptimizedTrajectory(trajopt.ReconstructTrajectory(result), True, status, elapsed)
 
 
-def _tool_speed(scene: OptimizationScene, trajectory: BsplineTrajectory, tau: float, h: float = 1e-3) -> float:
-    """E's speed at time ``tau`` of ``trajectory`` (central difference), m/s."""
-    a = max(tau - h, trajectory.start_time())
-    b = min(tau + h, trajectory.end_time())
-    p_a = scene.X_WE(trajectory.value(a)[:, 0]).translation()
-    p_b = scene.X_WE(trajectory.value(b)[:, 0]).translation()
-    return float(np.linalg.norm(p_b - p_a) / (b - a))
+def _tool_speed_and_acceleration(scene: OptimizationScene, trajectory: BsplineTrajectory, tau: float,
+                                 h: float = 1e-3) -> tuple[float, float]:
+    """E's speed (m/s) and the magnitude of its acceleration (m/s^2) at time ``tau`` of
+    ``trajectory`` (central differences over ``h``)."""
+    times = [max(tau - h, trajectory.start_time()), tau, min(tau + h, trajectory.end_time())]
+    p = [scene.X_WE(trajectory.value(x)[:, 0]).translation() for x in times]
+    speed = float(np.linalg.norm(p[2] - p[0]) / max(times[2] - times[0], 1e-12))
+    acceleration = float(np.linalg.norm(p[2] - 2.0 * p[1] + p[0]) / h ** 2)
+    return speed, acceleration
 
 
 def _slowed_clock(scene: OptimizationScene, trajectory: BsplineTrajectory, due: np.ndarray,
-                  pass_speed_m_s: float | None, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+                  pass_speed_m_s: float | None, pass_acceleration_m_s2: float | None,
+                  window_s: float) -> tuple[np.ndarray, np.ndarray]:
     """A retiming that passes each of the inner times ``due`` at most at
-    ``pass_speed_m_s``: the motion's rate is multiplied by ``1 - (1 - rho) cos^2``
-    bumps ``window_s`` wide on either side of each (``rho``: the needed slow-down), so
-    the path stays the same and speeds only drop. Returns the original times ``tau``
-    (a 1 ms grid) and the new clock at them."""
+    ``pass_speed_m_s`` and ``pass_acceleration_m_s2``: the motion's rate is multiplied by
+    ``1 - (1 - rho) cos^2`` bumps ``window_s`` wide on either side of each (``rho``: the
+    slow-down needed; at a bump's centre the rate is flat, so speed scales by ``rho``
+    and acceleration by ``rho^2``), so the path stays the same and speeds only drop.
+    Returns the original times ``tau`` (a 1 ms grid) and the new clock at them."""
     T = float(trajectory.end_time())
     tau = np.linspace(0.0, T, max(int(np.ceil(T / 1e-3)), 2) + 1)
     rate = np.ones_like(tau)
-    if pass_speed_m_s is not None:
-        for t_i in due[1:-1]:
-            speed = _tool_speed(scene, trajectory, float(t_i))
-            rho = min(1.0, pass_speed_m_s / speed) if speed > 0 else 1.0
-            x = np.clip((tau - t_i) / window_s, -1.0, 1.0)
-            rate *= 1.0 - (1.0 - rho) * np.cos(0.5 * np.pi * x) ** 2
+    for t_i in due[1:-1] if pass_speed_m_s is not None else ():
+        speed, acceleration = _tool_speed_and_acceleration(scene, trajectory, float(t_i))
+        rho = min(1.0, pass_speed_m_s / speed if speed > 0 else 1.0)
+        if pass_acceleration_m_s2 is not None and acceleration > 0:
+            rho = min(rho, math.sqrt(pass_acceleration_m_s2 / acceleration))
+        x = np.clip((tau - t_i) / window_s, -1.0, 1.0)
+        rate *= 1.0 - (1.0 - rho) * np.cos(0.5 * np.pi * x) ** 2
     clock = np.concatenate([[0.0], np.cumsum(0.5 * (1.0 / rate[1:] + 1.0 / rate[:-1]) * np.diff(tau))])
     return tau, clock
 
@@ -351,13 +358,15 @@ def sample_trajectory(
     time_step: float,
     tool_speed_m_s: float,
     pass_speed_m_s: float | None = None,
+    pass_acceleration_m_s2: float | None = None,
     slow_window_s: float = 0.15,
 ) -> tuple[np.ndarray, np.ndarray, list[RigidTransform], list[int], np.ndarray]:
     """Samples ``trajectory`` every ``time_step`` with each path fraction of
     ``fractions`` (the targets, in order, 0 and 1 included) on a sample.
 
     The motion is retimed along its path, never faster: around each inner fraction it
-    slows to pass it at most at ``pass_speed_m_s`` (None: as optimized; see
+    slows to pass it at most at ``pass_speed_m_s`` and ``pass_acceleration_m_s2``
+    (None: as optimized; see
     :func:`_slowed_clock`: a closed loop lags the command by a few milliseconds, so
     the speed at a critical configuration is what its error there grows with); each
     stretch between consecutive fractions is stretched to a whole number of steps; then
@@ -377,7 +386,8 @@ def sample_trajectory(
     """
     T = float(trajectory.end_time())
     fractions = np.asarray(fractions, dtype=float)
-    tau, clock = _slowed_clock(scene, trajectory, fractions * T, pass_speed_m_s, slow_window_s)
+    tau, clock = _slowed_clock(scene, trajectory, fractions * T, pass_speed_m_s, pass_acceleration_m_s2,
+                               slow_window_s)
     clock_due = np.interp(fractions * T, tau, clock)
     scale = 1.0
     for _ in range(5):
