@@ -94,8 +94,11 @@ def brute_force_cost(task_poses, feature, tolerances, weights):
                 break
             stretch = abs(np.log(np.linalg.norm(a) / np.linalg.norm(b)))
             anchor = np.linalg.norm(R(feature.rotations[i]).T @ a - R(deltas[l, :4]).T @ a)
-            total += (alpha + weights.direction_per_rad * np.arccos(np.clip(beta, -1, 1))
+            direction = np.arccos(np.clip(beta, -1, 1))
+            total += (alpha + weights.direction_per_rad * direction
                       + weights.log_scale * stretch + weights.anchor_per_m * anchor)
+            if l > 0:  # a later pair's anchor bent off the aligned demonstration
+                total += weights.bend_per_m * 2.0 * np.linalg.norm(a) * np.sin(0.5 * direction)
             if l == 0:
                 chord = positions[-1] - positions[i]
                 unit = chord / np.linalg.norm(chord)

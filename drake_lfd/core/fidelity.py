@@ -94,26 +94,43 @@ class FidelityWeights:
     Attributes
     ----------
     direction_per_rad : float
-        Cost per radian between a pair's task and demo translations. 0.1: a translation
-        turned by 150 deg (about the most ``d_beta = -0.9`` lets through) costs 0.26,
-        like a rotation off by 30 deg. Kept low because a straight motion at a constant
-        orientation may well run either way; the stretch and excursion then decide.
+        Cost per radian between a pair's task and demo translations. 0.025: a
+        translation turned by 150 deg (about the most ``d_beta = -0.9`` lets through)
+        costs 0.065, like a rotation off by 7.5 deg. Kept low because a straight motion
+        at a constant orientation may well run either way; the stretch, excursion and
+        bend then decide.
     log_scale : float
-        Cost per unit of ``|ln(scale)|`` of a pair. 0.5: a 2x stretch costs 0.35, like a
-        rotation off by 40 deg.
+        Cost per unit of ``|ln(scale)|`` of a pair. 0.125: a 2x stretch costs 0.087, like
+        a rotation off by 10 deg.
     excursion_per_m : float
-        Cost per metre that scaling moves the path off the demonstrated shape. 10.0: a
-        lift grown by 5 cm costs 0.5, like a rotation off by 58 deg (``d_alpha``), so
-        stretching a curved demonstration costs more than turning a straight one around.
+        Cost per metre that scaling moves the path off the demonstrated shape. 2.5: a
+        lift grown by 5 cm costs 0.125, like a rotation off by 14 deg, so stretching a
+        curved demonstration costs more than turning a straight one around.
     anchor_per_m : float
         Cost per metre the pair's rotation mismatch moves its configuration (the anchor
-        correction's lever arm). 5.0: a 10 cm correction costs 0.5.
+        correction's lever arm). 1.25: a 10 cm correction costs 0.125.
+
+    bend_per_m : float
+        Cost per metre a later pair's translation mismatch moves its configuration off
+        where the aligned demonstration puts it (the chord between the two directions at
+        the task translation's length): both it and the anchor are the correction the
+        mapping must spread over the span (docs/method.rst, Mapping). Without it a span
+        may swallow a configuration 40 cm off the demonstration's path (transferring,
+        seed 2: a 375 mm correction) at the price of the small direction term. 1.25, as
+        the anchor.
+
+    The weights are a quarter of the first ones tried (0.1, 0.5, 10, 5, 5): at those, the
+    terms outweighed alpha so far that on the paper's filling-and-pouring task the
+    allocation traded rotation for shape and the mapping had to correct 61-113 mm and
+    16-30 deg; at a quarter it corrects at most 7 mm and 1.8 deg there, and the
+    benchmark's pass rate rises from 58 to 60 of 60 (``benchmarks/bench_fidelity.py``).
     """
 
-    direction_per_rad: float = 0.1
-    log_scale: float = 0.5
-    excursion_per_m: float = 10.0
-    anchor_per_m: float = 5.0
+    direction_per_rad: float = 0.025
+    log_scale: float = 0.125
+    excursion_per_m: float = 2.5
+    anchor_per_m: float = 1.25
+    bend_per_m: float = 1.25
 
     def __post_init__(self):
         for field in dataclasses.fields(self):
@@ -216,9 +233,16 @@ def fidelity_terms(
     start_demo = vector_rotated_by_quaternion(quaternion_conjugate(demo_q), t)
     start_task = vector_rotated_by_quaternion(quaternion_conjugate(task_q), t)
     pair += weights.anchor_per_m * np.linalg.norm(start_demo - start_task, axis=-1)
+    # Bend: a later pair's anchor is where the first pair's alignment puts the demo; a
+    # task translation turned from the demo's by ``direction`` moves it by the chord
+    # ``2 |t_l| sin(direction / 2)``, which the anchor correction must make up. The first
+    # pair is aligned exactly (no bend), so its share is taken back in ``first``.
+    bend = weights.bend_per_m * 2.0 * task_length * np.sin(0.5 * direction)
+    bend[(task_length < min_length_m) & (demo_length < min_length_m)] = 0.0
+    pair += bend
     # The mapping's scale if the pair is the first (Eq. 23: 1 for a short demo translation).
     scale = np.where(demo_length < min_length_m, 1.0, np.exp(log_ratio))
-    first = weights.excursion_per_m * np.abs(scale - 1.0) * np.asarray(demo_excursions, dtype=float)
+    first = weights.excursion_per_m * np.abs(scale - 1.0) * np.asarray(demo_excursions, dtype=float) - bend
     return pair, first
 
 

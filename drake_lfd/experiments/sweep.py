@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
 
 from drake_lfd.core.errors import InputError
 from drake_lfd.experiments.figures import save_figure
@@ -88,7 +89,8 @@ def parse_axis(text: str, name: str = "X") -> tuple:
         raise InputError(f'"{text}": N{name} must be at least 1, got {count}', field="--base-grid")
     if count == 1 and lower != upper:
         raise InputError(f'"{text}": one point needs {name}0 = {name}1', field="--base-grid")
-    return tuple(float(v) for v in np.linspace(lower, upper, count))
+    # rounded to 12 decimals, so -0.3:-0.1:3 gives -0.2, not -0.19999999999999998
+    return tuple(round(float(v), 12) for v in np.linspace(lower, upper, count))
 
 
 def base_grid(axes: list[str] | None, task_base: BasePlacement) -> BaseGrid:
@@ -191,7 +193,8 @@ def _cell_text(successes: int, trials: int) -> str:
 
 def success_by_base_figure(path, summary: dict, *, title: str) -> Path:
     """Heatmap of the success rate over the base grid's x and y (cells say k/n), one
-    panel per (z, yaw) of the grid; the task's own base is starred where it falls."""
+    panel per (z, yaw) of the grid; the task's own base is outlined (its cell) or
+    starred (between cells)."""
     grid = summary["grid"]
     xs, ys, zs, yaws = grid["x"], grid["y"], grid["z"], grid["yaw_deg"]
     panels = list(itertools.product(zs, yaws))
@@ -222,8 +225,12 @@ def success_by_base_figure(path, summary: dict, *, title: str) -> Path:
                 and math.isclose(own["base_z"], z) and math.isclose(own["base_yaw_deg"], yaw)):
             column = np.interp(own["base_x"], xs, range(len(xs))) if len(xs) > 1 else 0.0
             row = np.interp(own["base_y"], ys, range(len(ys))) if len(ys) > 1 else 0.0
-            axis.plot([column], [row], marker="*", color="k", markersize=14, markerfacecolor="none",
-                      label="task file's base")
+            if np.isclose(column, round(column)) and np.isclose(row, round(row)):  # a grid cell: outline it
+                axis.add_patch(Rectangle((round(column) - 0.5, round(row) - 0.5), 1, 1, fill=False, edgecolor="k",
+                                         linewidth=2.5, label="task file's base"))
+            else:
+                axis.plot([column], [row], marker="*", color="k", markersize=14, markerfacecolor="none",
+                          linestyle="none", label="task file's base")
             axis.legend(loc="upper right", fontsize=7)
     for axis in axes[len(panels):]:
         axis.set_visible(False)
