@@ -364,7 +364,7 @@ def check_schema(value, schema, path, file, expected=None):
         elif any(
             alternative in (float, int, str) and _matches_scalar(value, alternative)
             for alternative in alternatives
-        ) or (bool in alternatives and isinstance(value, bool)) or (value is None and type(None) in alternatives):
+        ) or (bool in alternatives and isinstance(value, bool)):
             return
         raise InputError(f"expected {expected or _describe(schema)}, got {kind_of(value)}", file=file, field=path)
     if origin is list:
