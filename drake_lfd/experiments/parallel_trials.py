@@ -248,8 +248,14 @@ def _client(workers: int, scheduler: str | None) -> Iterator:
     cluster = None
     try:
         if scheduler is None:
+            # No dashboard, and no statistical profiling in the workers: the profiler
+            # samples every thread's stack under the GIL every 10 ms, a cost on trials that
+            # are Python all the way down.
+            import dask
+
+            dask.config.set({"distributed.worker.profile.enabled": False})
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=":0", memory_limit=0, silence_logs=logging.CRITICAL)
+                                   dashboard_address=None, memory_limit=0, silence_logs=logging.CRITICAL)
             client = Client(cluster)
             client.register_plugin(_interrupt_shield())
         else:
