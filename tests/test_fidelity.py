@@ -260,47 +260,6 @@ def test_a_rigid_motion_of_the_whole_problem_keeps_the_fidelity_plan(paper5):
         assert worst < 1e-6
 
 
-@pytest.mark.parametrize("seed", [0, 3])
-def test_a_rigid_motion_of_the_transferring_scene_keeps_the_executable_fidelity_plan(paper5, seed):
-    """As ``test_executable_plans``' rigid-motion test, with the fidelity cost: base,
-    table, configurations, obstacle and shell turned and moved; the same composition and
-    the same joint path (seed 3 needs the search's alternative suffixes)."""
-    from pydrake.math import RigidTransform, RotationMatrix, RollPitchYaw
-
-    from drake_lfd.core.tasks import Box
-    from drake_lfd.diagrams.pipeline import joint_path_checker
-    from drake_lfd.robot.workcell import Workcell
-
-    T = RigidTransform(RotationMatrix.MakeZRotation(0.4), [0.3, -0.2, 0.0])
-    concrete = draw_trial(load_task(scenarios_directory() / "transferring.yaml"), seed)
-
-    def moved_con(con):
-        X = T.multiply(RigidTransform(RollPitchYaw(np.array(con.euler_zyx)[::-1]), np.array(con.p)))
-        rpy = RollPitchYaw(X.rotation())
-        return ConcreteCriticalConfiguration.fixed(X.translation(), [rpy.yaw_angle(), rpy.pitch_angle(),
-                                                                     rpy.roll_angle()])
-
-    def moved_box(box):
-        return Box(name=box.name, centre=T.multiply(np.array(box.centre)), size=box.size,
-                   rotation=T.rotation().matrix() @ box.rotation)
-
-    moved = dataclasses.replace(
-        concrete, critical_configurations=tuple(moved_con(c) for c in concrete.critical_configurations),
-        X_WB=T.multiply(concrete.X_WB), obstacles=tuple(moved_box(b) for b in concrete.obstacles),
-        safety_shells=tuple(moved_box(b) for b in concrete.safety_shells))
-    results = []
-    for task in (concrete, moved):
-        workcell = Workcell.of(task)
-        results.append(plan_task(task, paper5, cost="fidelity", floor_z=workcell.planner_floor,
-                                 checker=joint_path_checker(workcell)))
-    original, rigid = results
-    assert original.planned and rigid.planned
-    composition = [(s.demo, s.con_from, s.con_to) for s in original.composition]
-    assert composition == [(s.demo, s.con_from, s.con_to) for s in rigid.composition]
-    assert all(demo == "stacking" for demo, _, _ in composition)  # no tool-turning filling span
-    np.testing.assert_allclose(original.joint_path.q[:, 1:], rigid.joint_path.q[:, 1:], atol=1e-4)
-
-
 # -- the command line ----------------------------------------------------------------------
 
 def test_plan_cost_option_on_the_command_line(tmp_path):
