@@ -3,12 +3,15 @@
 Run: ``python benchmarks/bench_sweep.py [--trials 10] [--grid X0:X1:NX Y0:Y1:NY]``. It runs
 the same sweep twice as a user would, each a separate ``drake-lfd sweep`` process: the
 transferring task with ``paper5`` on a 2 x 2 grid of base placements around the task
-file's base, 10 trials each (40 trials), first with ``--workers 1`` (in one process, no
-cluster), then with ``--workers 2`` (a LocalCluster of two worker processes; cluster
-start-up included). Prints both wall times, the speed-up (target: at least 1.7 on two
-cores), the load average before and after (the machine is shared: other work on the
-cores lowers the speed-up), and whether the two ``sweep.jsonl`` tables are the same row
-for row (every field but wall-clock ones, rows matched by their inputs).
+file's base, 10 trials each (40 trials), with ``--workers 1`` (in one process, no
+cluster) and with ``--workers 2`` (a LocalCluster of two worker processes; cluster
+start-up included). The machine is shared and its speed drifts by a third over minutes
+(the same failing trial measured 5.5 s and 8 s an hour apart), so the runs go in the
+order 1, 2, 2, 1 (``--rounds 2``; each round adds such a pair of pairs): a drift that is
+steady over the runs then weighs the same on both. Prints every wall time, the speed-up
+(the 1-worker sum over the 2-worker sum; target: at least 1.7 on two cores), the load
+average before and after, and whether every ``sweep.jsonl`` table is the same row for row
+(every field but wall-clock ones, rows matched by their inputs).
 
 Not for: measuring a single trial (``bench_pipeline.py``).
 """
@@ -52,25 +55,28 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=10, help="trials per base placement")
     parser.add_argument("--grid", nargs=2, default=["-0.3:-0.2:2", "0.6:0.7:2"], metavar="A0:A1:N",
                         help="the x and y axes of --base-grid")
+    parser.add_argument("--rounds", type=int, default=1, help="rounds of runs in the order 1, 2, 2, 1 workers")
     args = parser.parse_args()
     placements = 1
     for axis in args.grid:
         placements *= int(axis.split(":")[2])
     total = placements * args.trials
     load_before = os.getloadavg()[0]
+    order = [1, 2, 2, 1] * max(1, args.rounds)
+    walls, tables = {1: [], 2: []}, []
     with tempfile.TemporaryDirectory() as scratch:
-        walls, tables = {}, {}
-        for workers in (1, 2):
-            out = Path(scratch) / f"workers{workers}"
-            walls[workers] = run_sweep(out, workers, args.trials, args.grid)
+        for run, workers in enumerate(order):
+            out = Path(scratch) / f"run{run}"
+            walls[workers].append(run_sweep(out, workers, args.trials, args.grid))
             rows = read_json_lines(out / "sweep.jsonl")
-            tables[workers] = sorted((without_wall_times(row) for row in rows), key=row_key)
+            tables.append(sorted((without_wall_times(row) for row in rows), key=row_key))
             successes = sum(bool(row["success"]) for row in rows)
             print(f"--workers {workers}: {total} trials ({placements} placements x {args.trials}) in "
-                  f"{walls[workers]:.1f} s wall, {successes} succeeded", flush=True)
+                  f"{walls[workers][-1]:.1f} s wall, {successes} succeeded", flush=True)
     load_after = os.getloadavg()[0]
-    same = len(tables[1]) == len(tables[2]) == total and tables[1] == tables[2]
-    print(f"speed-up on 2 workers: {walls[1] / walls[2]:.2f}x (target 1.7x); {os.cpu_count()} cores; "
+    same = all(len(table) == total and table == tables[0] for table in tables)
+    print(f"speed-up on 2 workers: {sum(walls[1]):.1f} s / {sum(walls[2]):.1f} s = "
+          f"{sum(walls[1]) / sum(walls[2]):.2f}x (target 1.7x); {os.cpu_count()} cores; "
           f"load average {load_before:.1f} before, {load_after:.1f} after")
     print(f"rows identical row for row (wall-clock fields aside): {'yes' if same else 'NO'}")
 

@@ -27,6 +27,11 @@ from drake_lfd.planning.refinement import (
     shape_deviation,
 )
 from drake_lfd.robot.workcell import Workcell
+import drake_lfd.planning.refinement as refinement_module
+
+# The tests that need a refinement to succeed give the solver all the time it takes: the
+# default budget is wall time, and a busy test machine would make them fail for that.
+UNTIMED = RefinementOptions(solve_budget_s=None)
 
 SIMS = scenarios_directory()
 
@@ -47,7 +52,7 @@ def transferring():
 @pytest.fixture(scope="module")
 def refined(transferring):
     result, checker, scene = transferring
-    return refine_plan(result, checker, scene=scene)
+    return refine_plan(result, checker, scene=scene, options=UNTIMED)
 
 
 def test_refined_transferring_is_executable_in_the_tube_and_shorter(transferring, refined):
@@ -86,7 +91,7 @@ def test_refined_transferring_meets_every_critical_configuration_and_keeps_the_c
 
 def test_the_plain_optimizer_is_the_peer_without_a_tube(transferring, refined):
     composed, checker, scene = transferring
-    plain = plain_plan(composed, checker, scene=scene)
+    plain = plain_plan(composed, checker, scene=scene, options=UNTIMED)
     assert plain.refinement.method == "plain"
     assert plain.refinement.status == "refined", plain.refinement.reason
     # Same start and goal configurations as the composed plan.
@@ -97,6 +102,7 @@ def test_the_plain_optimizer_is_the_peer_without_a_tube(transferring, refined):
 @pytest.mark.parametrize("options, expected", [
     (RefinementOptions(tube_position_m=1e-4, tube_rotation_rad=math.radians(0.01)), ""),
     (RefinementOptions(max_iterations=1), "optimizer"),
+    (RefinementOptions(solve_budget_s=0.0), "optimizer: time budget spent (SNOPT stopped)"),
 ])
 def test_a_failed_refinement_leaves_the_unrefined_plan_and_says_why(transferring, options, expected):
     composed, checker, scene = transferring
@@ -130,10 +136,29 @@ def test_plan_refine_json_on_the_command_line(tmp_path):
         assert document["joint_trajectory"]["t"][-1] >= refinement["duration_s"] - 1e-9
 
 
+def _untimed_refine_plan(result, checker, *, scene=None, options=None):
+    return refine_plan(result, checker, scene=scene, options=UNTIMED)
+
+
+def test_the_tube_is_sampled_evenly_in_s_and_along_the_arc_length(transferring):
+    composed, _, _ = transferring
+    # Evenly in s, and evenly along the composed path (where a span is passed quickly for
+    # its length, samples evenly in s leave the path room to stray between them).
+    reference = refinement_module._Reference(composed.timed)
+    bounds = refinement_module._tube_bounds(reference, RefinementOptions(tube_samples=5))
+    fractions = [b.s for b in bounds]
+    assert len(fractions) == len(set(fractions)) and 5 < len(fractions) <= 10
+    np.testing.assert_allclose(reference.evenly_along(5), [f for f in fractions if f not in
+                                                           set(np.linspace(0, 1, 7)[1:-1])], atol=1e-12)
+    lengths = np.interp(reference.evenly_along(5), reference._s, reference._length)
+    np.testing.assert_allclose(np.diff(lengths), lengths[0], rtol=1e-9)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name, library", [
     ("transferring", "paper5"), ("filling_pouring", "paper5"), ("assembling", "paper6")])
-def test_one_refined_closed_loop_trial_per_paper_task_succeeds(name, library):
+def test_one_refined_closed_loop_trial_per_paper_task_succeeds(name, library, monkeypatch):
+    monkeypatch.setattr(refinement_module, "refine_plan", _untimed_refine_plan)
     task = load_task(SIMS / f"{name}.yaml")
     outcome = run_trial(task, library_features(Library.open(library)), trial=1, seed=0, cost="fidelity",
                         refine=True)

@@ -68,6 +68,15 @@ __all__ = [
 # A loose optimality tolerance: a feasible, nearly minimum-time motion is the goal, and
 # SNOPT's default (1e-6) spends most of the solve shaving the last hundredths of a second.
 _SNOPT_OPTIONS = {"Iterations limit": 100000, "Major optimality tolerance": 1e-2}
+# What the deadline's callback raises (Drake re-raises it from Solve as a RuntimeError
+# whose message holds this text).
+_DEADLINE_MESSAGE = "time budget spent (SNOPT stopped)"
+
+
+class _DeadlinePassed(Exception):
+    pass
+
+
 # Links standing on the table: never checked against it (as in joint_path.py).
 _ON_TABLE_LINKS = ("base_link", "shoulder_link")
 
@@ -231,6 +240,7 @@ def optimize_joint_trajectory(
     clearance_samples: int = 40,
     limits: TrajectoryLimits = TrajectoryLimits(),
     max_iterations: int | None = None,
+    deadline_s: float | None = None,
 ) -> OptimizedTrajectory:
     """Solves the program of the module docstring from ``guess`` (a B-spline in path
     fraction, on [0, 1], its ends the fixed start and goal configurations).
@@ -247,6 +257,12 @@ def optimize_joint_trajectory(
     limits : TrajectoryLimits
     max_iterations : int, optional
         SNOPT's major iteration limit (default: SNOPT's).
+    deadline_s : float, optional
+        A ``time.perf_counter()`` reading: SNOPT is stopped at its first evaluation of
+        the program after it (the answer is then a failure, status ``time budget
+        spent``). The SNOPT shipped with Drake ignores its own ``Time limit`` option, so
+        the stop is an exception raised in a visualization callback, which Drake turns
+        into SNOPT's "terminated during function evaluation".
     """
     plant, context, frame_E = scene.plant, scene.plant_context, scene.frame_E
     world = plant.world_frame()
@@ -305,9 +321,20 @@ def optimize_joint_trajectory(
         options.SetOption(SnoptSolver.id(), name, value)
     if max_iterations is not None:
         options.SetOption(SnoptSolver.id(), "Major iterations limit", int(max_iterations))
+    if deadline_s is not None:
+        def stop_at_deadline(_):
+            if time.perf_counter() > deadline_s:
+                raise _DeadlinePassed(_DEADLINE_MESSAGE)
+
+        prog.AddVisualizationCallback(stop_at_deadline, prog.decision_variables())
     solver = SnoptSolver()
     start = time.perf_counter()
-    result = solver.Solve(prog, None, options)
+    try:
+        result = solver.Solve(prog, None, options)
+    except RuntimeError as error:
+        if _DEADLINE_MESSAGE not in str(error):
+            raise
+        return OptimizedTrajectory(None, False, _DEADLINE_MESSAGE, time.perf_counter() - start)
     elapsed = time.perf_counter() - start
     details = result.get_solver_details()
     status = f"SNOPT info {details.info}" if hasattr(details, "info") else str(result.get_solution_result())
