@@ -17,6 +17,7 @@ from cli_subprocess import cli_command, cli_env, stderr_lines
 from drake_lfd import cli
 from drake_lfd.cli.app import build_parser
 from drake_lfd.core.resources import scenarios_directory
+from drake_lfd.experiments.parallel_trials import trial_cluster
 from drake_lfd.experiments.sweep import failure_kind, parse_axis, row_key
 from drake_lfd.io.json_lines import read_json_lines
 
@@ -132,6 +133,58 @@ def test_simulate_on_two_workers_equals_one_process(tmp_path, capsys):
     assert deterministic(documents[2]) == deterministic(documents[1])
     lines = [line.split(":")[0] for line in capsys.readouterr().out.splitlines() if line.startswith("trial ")]
     assert lines == ["trial 1 (seed 4)", "trial 2 (seed 5)", "trial 3 (seed 6)"] * 2
+
+
+def _worker_state():
+    """A worker's process id and how many TrialRunners it keeps."""
+    import os
+
+    from drake_lfd.experiments import parallel_trials
+
+    return os.getpid(), len(parallel_trials._RUNNERS)
+
+
+def _gone(pid):
+    import psutil
+
+    try:
+        return psutil.Process(pid).status() == psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return True
+
+
+@pytest.mark.slow
+def test_a_trial_cluster_started_early_serves_two_runs_like_one_process_and_ends_with_its_block():
+    from drake_lfd.experiments.parallel_trials import BasePlacement, run_trial_specs, runner_spec, trial_specs
+    from drake_lfd.experiments.simulation import trial_json
+    from drake_lfd.io.library import Library
+
+    library = Library.open("paper5")
+    reachable = trial_specs(runner_spec(TRANSFERRING, library), trials=2, seed=0)
+    out_of_reach = trial_specs(runner_spec(TRANSFERRING, library, base=BasePlacement(-0.1, 0.7, 0.0, 0.0)),
+                               trials=2, seed=0)
+
+    def outcomes(specs, **where):
+        return [deterministic(trial_json(outcome)) for outcome in run_trial_specs(specs, in_order=True, **where)]
+
+    with trial_cluster(2) as cluster:
+        first = outcomes(reachable, cluster=cluster)
+        client = cluster.client()
+        workers = client.run(_worker_state)
+        second = outcomes(out_of_reach, cluster=cluster)
+        after = client.run(_worker_state)
+        assert client.status == "running"  # neither run closed it
+    assert sorted(pid for pid, _ in after.values()) == sorted(pid for pid, _ in workers.values())
+    assert sum(runners for _, runners in after.values()) > sum(runners for _, runners in workers.values())
+    assert first == outcomes(reachable, workers=1) and [o["success"] for o in first] == [True, True]
+    assert second == outcomes(out_of_reach, workers=1) and not any(o["success"] for o in second)
+    pids = [pid for pid, _ in after.values()]
+    deadline = time.monotonic() + 10
+    while not all(_gone(pid) for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert all(_gone(pid) for pid in pids), "a worker process outlived its trial cluster"
+    with pytest.raises(RuntimeError, match="closed"):
+        cluster.client()
 
 
 @pytest.mark.parametrize("grid, message", [

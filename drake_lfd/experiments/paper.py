@@ -18,12 +18,16 @@ Steps (each printed as it runs):
 Writes ``results.json`` (docs/cli.rst), ``report.md``, PNG figures and a Meshcat HTML
 recording per task into the output folder; every closed-loop trial is appended to
 ``trials.jsonl`` there as it finishes (:mod:`drake_lfd.io.json_lines`), so an interrupt
-keeps what ran. When ``DRAKE_ALLOW_NETWORK`` disables Meshcat, the recordings are skipped
-with a note (:mod:`drake_lfd.core.network_policy`). Not for: the command line (``cli_paper.py``).
+keeps what ran. With more than one worker (or a scheduler), one cluster serves the
+trials of all three tasks: it is started first and closed at the end, however the run
+ends. When ``DRAKE_ALLOW_NETWORK`` disables
+Meshcat, the recordings are skipped with a note (:mod:`drake_lfd.core.network_policy`).
+Not for: the command line (``cli_paper.py``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import platform
 import time
@@ -44,7 +48,7 @@ from drake_lfd.io.plan_json import uncovered_json
 from drake_lfd.planning.planner import build_problem, plan_task
 from drake_lfd.io.policy_files import save_policy
 from drake_lfd.planning.q_learning import episodes_to_steady
-from drake_lfd.experiments.parallel_trials import run_trials_on_workers, runner_spec
+from drake_lfd.experiments.parallel_trials import run_trials_on_workers, runner_spec, trial_cluster
 from drake_lfd.experiments.rederive import rederive_run
 from drake_lfd.experiments.simulation import (
     composition_counts,
@@ -88,11 +92,12 @@ def _reasons(outcome) -> str:
 
 
 def _task_results(name, task, features, policy, trials, seed, out, log, finished=None, record=True,
-                  workers=1, scheduler=None, library=None, policy_file=None, refine=False):
+                  workers=1, scheduler=None, library=None, policy_file=None, refine=False, cluster=None):
     """Runs the trials of one task; figures and (``record``) a recording of the first
     trial; each finished trial is appended to ``finished`` (a JsonLinesFile). With more
-    than one worker (or a scheduler) the trials run on worker processes, which load the
-    task file, ``library`` (opened) and the saved ``policy_file`` themselves."""
+    than one worker (or a scheduler) the trials run on worker processes (those of
+    ``cluster``, if given), which load the task file, ``library`` (opened) and the saved
+    ``policy_file`` themselves."""
     recording = out / f"{name}.html"
 
     def progress(done, total, outcome):
@@ -110,6 +115,7 @@ def _task_results(name, task, features, policy, trials, seed, out, log, finished
             runner_spec(task.file, library, policy_file=policy_file, planner="q", refine=refine), trials=trials,
             seed=seed,
             record_html=recording if record else None, progress=progress, workers=workers, scheduler=scheduler,
+            cluster=cluster,
         )
     first = next((o for o in outcomes if o.run is not None), None)
     figures = write_trial_figures(task, first, out, name) if first is not None else {}
@@ -147,17 +153,26 @@ def run_paper(out: Path, *, trials: int = 20, seed: int = 0, log: Callable[[str]
     """Runs Section 6 and writes everything into ``out``; returns the results document.
     Every closed-loop trial is appended to ``out / "trials.jsonl"`` as it finishes. The
     closed-loop trials run on ``workers`` processes (or the workers of ``scheduler``;
-    :mod:`~drake_lfd.experiments.parallel_trials`), with the same results; the training
-    runs here. ``refine`` refines every closed-loop trial's plan by trajectory
-    optimization (``planning/refinement.py``)."""
+    :mod:`~drake_lfd.experiments.parallel_trials`; one cluster for all three tasks),
+    with the same results; the training runs here.
+    ``refine`` refines every closed-loop trial's plan by trajectory optimization
+    (``planning/refinement.py``)."""
     out.mkdir(parents=True, exist_ok=True)
-    with JsonLinesFile(out / "trials.jsonl") as finished:
+    with JsonLinesFile(out / "trials.jsonl") as finished, _paper_cluster(workers, scheduler, trials) as cluster:
         return _run_paper(out, trials=trials, seed=seed, log=log, finished=finished, workers=workers,
-                          scheduler=scheduler, refine=refine)
+                          scheduler=scheduler, refine=refine, cluster=cluster)
+
+
+def _paper_cluster(workers: int, scheduler: str | None, trials: int):
+    """The cluster all three tasks' trials run on, or a null context (no cluster) when
+    they run in this process."""
+    if scheduler is None and (workers <= 1 or trials <= 1):
+        return contextlib.nullcontext()
+    return trial_cluster(workers, scheduler)
 
 
 def _run_paper(out: Path, *, trials: int, seed: int, log: Callable[[str], None], finished, workers: int,
-               scheduler: str | None, refine: bool = False) -> dict:
+               scheduler: str | None, refine: bool = False, cluster=None) -> dict:
     start = time.perf_counter()
     no_meshcat = not drake_allows("meshcat")
     if no_meshcat:
@@ -187,7 +202,7 @@ def _run_paper(out: Path, *, trials: int, seed: int, log: Callable[[str], None],
         results["tasks"][name] = _task_results(name, tasks[name], features5, training.policy, trials, seed, out, log,
                                                finished, record=not no_meshcat, workers=workers, scheduler=scheduler,
                                                library=paper5, policy_file=out / "policy_paper5.json",
-                                               refine=refine)
+                                               refine=refine, cluster=cluster)
 
     log("assembling with paper5")
     assembling = tasks["assembling"]
@@ -217,7 +232,7 @@ def _run_paper(out: Path, *, trials: int, seed: int, log: Callable[[str], None],
     assembling_results["after_new_demo"] = _task_results(
         "assembling", assembling, features6, retraining.policy, trials, seed, out, log, finished,
         record=not no_meshcat, workers=workers, scheduler=scheduler, library=paper6,
-        policy_file=out / "policy_paper6.json", refine=refine)
+        policy_file=out / "policy_paper6.json", refine=refine, cluster=cluster)
     results["tasks"]["assembling"] = assembling_results
     results["table5"] = [
         {"demo": row.demo, "sample": row.sample, "alpha": float(row.alpha)} for row in table5

@@ -12,10 +12,16 @@ draws its concrete task from its own seed, so its outcome does not depend on whi
 process ran it, nor on the trials that ran before it there. With one worker (or one
 trial) and no scheduler, the trials run in this process and no cluster is started.
 
+A cluster costs about 2 s to start and stop (worker processes, each importing pydrake
+as it joins), so a command with several sets of trials (``paper``: three tasks) starts
+one with :func:`trial_cluster` and passes it to each :func:`run_trial_specs` call
+(``cluster=``); without ``cluster=``, each call starts and shuts down its own.
+
 Outcomes reach a callback as they finish (``as_completed``), or, with ``in_order``, in
 the order of the specs (a finished trial waits for the ones before it; on an interrupt,
-every finished one is still delivered before the interrupt goes on). The cluster is shut
-down however the run ends (Ctrl-C and SIGTERM included). Dask's own logging is silenced.
+every finished one is still delivered before the interrupt goes on). A cluster is shut
+down however its run (or its ``with`` block) ends, Ctrl-C and SIGTERM included. Dask's
+own logging is silenced.
 
 Not for: judging trials (:mod:`drake_lfd.experiments.simulation`), sweeps over base
 placements (:mod:`drake_lfd.experiments.sweep`), or the command line.
@@ -26,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import hashlib
+import importlib
 import logging
 import math
 import os
@@ -50,6 +57,8 @@ __all__ = [
     "run_trial_specs",
     "run_trials_on_workers",
     "default_workers",
+    "TrialCluster",
+    "trial_cluster",
 ]
 
 #: TrialRunners a worker process keeps (least recently used dropped first): a sweep
@@ -220,59 +229,117 @@ def _silence_dask() -> None:
     warnings.filterwarnings("ignore", module=r"(distributed|dask)(\.|$)")
 
 
-def _interrupt_shield():
-    """A worker plugin that makes a local worker process ignore SIGINT: Ctrl-C reaches
-    the whole process group, and only this process is to act on it (it shuts the
-    cluster down); a worker would print its own traceback. Made here so that importing
-    this module does not import dask (the class travels to the workers by value)."""
+def _worker_plugin():
+    """A worker plugin for the processes of a LocalCluster, set up as each one joins:
+    it makes the process ignore SIGINT (Ctrl-C reaches the whole process group, and only
+    this process is to act on it: it shuts the cluster down; a worker would print its own
+    traceback), then imports :mod:`drake_lfd.experiments.simulation` (pydrake), so that
+    import happens while the cluster starts rather than in the first trial. Made here so
+    that importing this module does not import dask (the class travels to the workers by
+    value)."""
     from distributed import WorkerPlugin
 
-    class IgnoreInterrupts(WorkerPlugin):
-        name = "drake-lfd-ignore-interrupts"
+    class PrepareTrialWorker(WorkerPlugin):
+        name = "drake-lfd-prepare-trial-worker"
         idempotent = True
 
         def setup(self, worker):
             with contextlib.suppress(ValueError):  # not the worker process's main thread
                 signal.signal(signal.SIGINT, signal.SIG_IGN)
+            with contextlib.suppress(Exception):  # a failing import fails the first trial, in full
+                importlib.import_module("drake_lfd.experiments.simulation")
 
-    return IgnoreInterrupts()
+    return PrepareTrialWorker()
+
+
+def _open_client(workers: int, scheduler: str | None):
+    """``(client, cluster)``: a Client of ``scheduler`` (``cluster`` None), or of a new
+    LocalCluster of ``workers`` single-threaded worker processes, each set up by
+    :func:`_worker_plugin`. Raises InputError for a scheduler it cannot reach."""
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            return Client(scheduler, timeout="20s"), None
+        except (OSError, TimeoutError, ValueError) as error:
+            raise InputError(f"cannot reach the scheduler {scheduler!r}: {error}", field="--scheduler") from None
+    # No dashboard, and no statistical profiling in the workers: the profiler samples
+    # every thread's stack under the GIL every 10 ms, a cost on trials that are Python
+    # all the way down.
+    import dask
+
+    dask.config.set({"distributed.worker.profile.enabled": False})
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                           memory_limit=0, silence_logs=logging.CRITICAL)
+    # The scheduler's GC diagnosis only logs (silenced here), and a Ctrl-C that lands in
+    # its gc callback, in whatever this process's main thread is doing, is swallowed.
+    from distributed.gc import disable_gc_diagnosis
+
+    disable_gc_diagnosis(force=True)
+    client = None
+    try:
+        client = Client(cluster)
+        client.register_plugin(_worker_plugin())
+    except BaseException:
+        _close_client(client, cluster)
+        raise
+    return client, cluster
+
+
+def _close_client(client, cluster) -> None:
+    """Closes ``client`` and then ``cluster`` (either may be None), errors ignored."""
+    if client is not None:
+        with contextlib.suppress(Exception):
+            client.close(timeout=10)
+    if cluster is not None:
+        with contextlib.suppress(Exception):
+            cluster.close(timeout=10)
+
+
+class TrialCluster:
+    """Where trials run: a dask Client of a new LocalCluster of ``workers`` worker
+    processes, or of the workers of ``scheduler``, started when this is made. Made by
+    :func:`trial_cluster`; pass it as ``cluster=`` to :func:`run_trial_specs` or
+    :func:`run_trials_on_workers` (any number of times)."""
+
+    def __init__(self, workers: int, scheduler: str | None = None):
+        self.workers = int(workers)
+        self.scheduler = scheduler
+        _silence_dask()
+        self._client, self._cluster = _open_client(self.workers, scheduler)
+
+    def client(self):
+        """The Client; RuntimeError once closed."""
+        if self._client is None:
+            raise RuntimeError("the trial cluster is closed")
+        return self._client
+
+    def close(self) -> None:
+        """Closes the client and the LocalCluster (its worker processes end); idempotent."""
+        client, cluster = self._client, self._cluster
+        self._client = self._cluster = None
+        if client is not None:
+            _close_client(client, cluster)
 
 
 @contextlib.contextmanager
-def _client(workers: int, scheduler: str | None) -> Iterator:
-    """A Client of ``scheduler``, or of a new LocalCluster of ``workers`` single-threaded
-    worker processes; both closed on the way out, whatever happens."""
-    from distributed import Client, LocalCluster
+def trial_cluster(workers: int, scheduler: str | None = None) -> Iterator[TrialCluster]:
+    """A started :class:`TrialCluster`, closed on the way out however the block ends (an
+    error, Ctrl-C, SIGTERM); pass it as ``cluster=`` to run several sets of trials on the
+    same worker processes (each keeps the TrialRunners it built).
 
-    _silence_dask()
-    cluster = None
+    Parameters
+    ----------
+    workers : int
+        Worker processes of the LocalCluster (ignored with ``scheduler``).
+    scheduler : str, optional
+        The address of a running scheduler: a Client of it, and no LocalCluster.
+    """
+    cluster = TrialCluster(workers, scheduler)
     try:
-        if scheduler is None:
-            # No dashboard, and no statistical profiling in the workers: the profiler
-            # samples every thread's stack under the GIL every 10 ms, a cost on trials that
-            # are Python all the way down.
-            import dask
-
-            dask.config.set({"distributed.worker.profile.enabled": False})
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, memory_limit=0, silence_logs=logging.CRITICAL)
-            client = Client(cluster)
-            client.register_plugin(_interrupt_shield())
-        else:
-            try:
-                client = Client(scheduler, timeout="20s")
-            except (OSError, TimeoutError, ValueError) as error:
-                raise InputError(f"cannot reach the scheduler {scheduler!r}: {error}",
-                                 field="--scheduler") from None
-        try:
-            yield client
-        finally:
-            with contextlib.suppress(Exception):
-                client.close(timeout=10)
+        yield cluster
     finally:
-        if cluster is not None:
-            with contextlib.suppress(Exception):
-                cluster.close(timeout=10)
+        cluster.close()
 
 
 def run_trial_specs(
@@ -282,6 +349,7 @@ def run_trial_specs(
     scheduler: str | None = None,
     on_result: Callable[[int, int, TrialSpec, object], None] | None = None,
     in_order: bool = False,
+    cluster: TrialCluster | None = None,
 ) -> list:
     """Runs the trials; returns their outcomes in the order of ``specs``.
 
@@ -300,6 +368,10 @@ def run_trial_specs(
     in_order : bool
         Deliver in spec order (finished trials wait for the ones before them); an
         interrupt or an error first delivers every trial that finished.
+    cluster : TrialCluster, optional
+        Run the trials on this cluster (from :func:`trial_cluster`; ``workers`` and
+        ``scheduler`` are then ignored), and leave it running. Without it, a cluster is
+        started for these trials and shut down after them (none with one worker).
     """
     specs = list(specs)
     total = len(specs)
@@ -327,19 +399,9 @@ def run_trial_specs(
         for index in sorted(finished):
             deliver(index)
 
-    workers = default_workers(total) if workers is None else int(workers)
-    if scheduler is None and (workers <= 1 or total <= 1):
-        try:
-            for index, spec in enumerate(specs):
-                outcomes[index] = finished[index] = run_trial_spec(spec)
-                deliver_ready()
-        finally:
-            _RUNNERS.clear()  # this process is no worker: its Diagrams are not kept
-        return outcomes
+    def run_on(client) -> None:
+        from distributed import as_completed
 
-    from distributed import as_completed
-
-    with _client(workers, scheduler) as client:
         futures = {client.submit(run_trial_spec, spec, pure=False): index for index, spec in enumerate(specs)}
         try:
             for future in as_completed(futures):
@@ -350,6 +412,22 @@ def run_trial_specs(
             with contextlib.suppress(Exception):  # the original error is the one to report
                 deliver_all()
             raise
+
+    if cluster is not None:
+        if specs:
+            run_on(cluster.client())
+        return outcomes
+    workers = default_workers(total) if workers is None else int(workers)
+    if scheduler is None and (workers <= 1 or total <= 1):
+        try:
+            for index, spec in enumerate(specs):
+                outcomes[index] = finished[index] = run_trial_spec(spec)
+                deliver_ready()
+        finally:
+            _RUNNERS.clear()  # this process is no worker: its Diagrams are not kept
+        return outcomes
+    with trial_cluster(workers, scheduler) as own:
+        run_on(own.client())
     return outcomes
 
 
@@ -362,16 +440,18 @@ def run_trials_on_workers(
     progress: Callable[[int, int, object], None] | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
+    cluster: TrialCluster | None = None,
 ) -> tuple[list, float]:
     """:func:`~drake_lfd.experiments.simulation.run_trials` on workers: the same
     outcomes, in trial order, and the wall time; ``progress(done, total, outcome)`` in
     trial order. The first trial carries ``record_html``; if it did not run, the first
     trial that did is run once more here to record it (a trial's outcome is the same
-    wherever it runs)."""
+    wherever it runs). ``workers``, ``scheduler`` and ``cluster`` are those of
+    :func:`run_trial_specs`."""
     start = time.perf_counter()
     outcomes = run_trial_specs(
         trial_specs(runner, trials=trials, seed=seed, record_html=record_html), workers=workers,
-        scheduler=scheduler, in_order=True,
+        scheduler=scheduler, in_order=True, cluster=cluster,
         on_result=None if progress is None else lambda done, total, spec, outcome: progress(done, total, outcome),
     )
     if record_html is not None and outcomes and outcomes[0].run is None:
