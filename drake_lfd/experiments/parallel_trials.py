@@ -221,12 +221,11 @@ def default_workers(trials: int) -> int:
     return max(1, min(os.cpu_count() or 1, int(trials)))
 
 
-#: Dask's periodic housekeeping, slowed or off: work stealing (queued tasks go to the
-#: next free worker anyway), the system monitors' samples and the event-loop tick
-#: check. With them at their defaults the main process (scheduler and client) used 6.4 s
-#: of CPU in a 67 s sweep on 2 cores, time taken from the workers.
+#: Dask's periodic housekeeping, slowed: the system monitors' samples and the
+#: event-loop tick check. At their defaults the main process (scheduler and client) used
+#: 6.4 s of CPU in a 67 s 40-trial sweep on 2 cores, time taken from the workers; with
+#: these, 3.6 s (most of it loading the task and library).
 _QUIET_CLUSTER = {
-    "distributed.scheduler.work-stealing": False,
     "distributed.admin.system-monitor.interval": "5s",
     "distributed.admin.tick.interval": "1s",
 }
