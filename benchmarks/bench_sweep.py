@@ -6,7 +6,7 @@ transferring task with ``paper5`` on a 2 x 2 grid of base placements around the 
 file's base, 10 trials each (40 trials), with ``--workers 1`` (in one process, no
 cluster) and with ``--workers 2`` (a LocalCluster of two worker processes; cluster
 start-up included). The machine is shared and its speed drifts by a third over minutes
-(the same failing trial measured 5.5 s and 8 s an hour apart), so the runs go in the
+(the same failing trial measured 7.3 s and 11.0 s on one day), so the runs go in the
 order 1, 2, 2, 1 (``--rounds 2``; each round adds such a pair of pairs): a drift that is
 steady over the runs then weighs the same on both. Prints every wall time, the speed-up
 (the 1-worker sum over the 2-worker sum; target: at least 1.7 on two cores), the load
