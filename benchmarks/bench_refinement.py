@@ -88,15 +88,21 @@ def _executed_tube_deviation(composed, result, run, times, poses) -> tuple[float
     return tube_deviation(composed.timed, s, poses)
 
 
-def bench_task(name: str, task, features, cost: str) -> list[dict]:
-    """The three rows of one task (trial seed 0), or one ``not planned`` row."""
-    concrete = draw_trial(task, 0)
-    kinematics = UR5eKinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+def _compose(task, features, seed: int, cost: str):
+    """As ``drake-lfd plan`` does: the trial of ``seed``, its work cell, the plan-time
+    checker, the composed plan and the time ``plan_task`` took."""
+    concrete = draw_trial(task, seed)
     workcell = Workcell.of(concrete)
     checker = joint_path_checker(workcell, task.simulation)
     start = time.perf_counter()
-    composed = plan_task(concrete, features, floor_z=workcell.planner_floor, checker=checker, cost=cost)
-    plan_time = time.perf_counter() - start
+    composed = plan_task(concrete, features, seed=seed, floor_z=workcell.planner_floor, checker=checker, cost=cost)
+    return concrete, workcell, checker, composed, time.perf_counter() - start
+
+
+def bench_task(name: str, task, features, cost: str) -> list[dict]:
+    """The three rows of one task (trial seed 0), or one ``not planned`` row."""
+    kinematics = UR5eKinematics(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E)
+    concrete, workcell, checker, composed, plan_time = _compose(task, features, 0, cost)
     if not composed.planned:
         return [{"task": name, "method": "unrefined", "status": composed.status}]
     scene = OptimizationScene(workcell)
@@ -182,11 +188,7 @@ def planning_times(seeds: int) -> list[str]:
             times, refined = [], 0
             for seed in range(seeds):
                 start = time.perf_counter()
-                concrete = draw_trial(task, seed)
-                workcell = Workcell.of(concrete)
-                checker = joint_path_checker(workcell, task.simulation)
-                result = plan_task(concrete, features, seed=seed, floor_z=workcell.planner_floor, checker=checker,
-                                   cost=cost)
+                _, _, checker, result, _ = _compose(task, features, seed, cost)
                 if result.planned:
                     result = refine_plan(result, checker)
                     refined += result.refinement.refined
