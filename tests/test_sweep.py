@@ -9,6 +9,7 @@ Base placements used: the transferring task's own base (-0.2, 0.7) succeeds; at
 import json
 import signal
 import subprocess
+import sys
 import time
 
 import pytest
@@ -185,6 +186,65 @@ def test_a_trial_cluster_started_early_serves_two_runs_like_one_process_and_ends
     assert all(_gone(pid) for pid in pids), "a worker process outlived its trial cluster"
     with pytest.raises(RuntimeError, match="closed"):
         cluster.client()
+
+
+def _worker_signals_and_marker():
+    """A worker's SIGINT and SIGTERM handlers, and whether it has the test's marker."""
+    from drake_lfd.experiments import parallel_trials
+
+    return (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM),
+            getattr(parallel_trials, "_test_marker", None))
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="workers are forked on Linux only")
+def test_local_cluster_workers_are_forked_copies_that_leave_interrupts_to_this_process(monkeypatch):
+    from drake_lfd.experiments import parallel_trials
+
+    assert parallel_trials.WORKER_START_METHOD == "fork"
+    monkeypatch.setattr(parallel_trials, "_test_marker", "set before the cluster started", raising=False)
+    with trial_cluster(2) as cluster:
+        states = cluster.client().run(_worker_signals_and_marker)
+    assert len(states) == 2
+    for sigint, sigterm, marker in states.values():
+        assert marker == "set before the cluster started"  # a copy of this process, not a fresh import
+        assert sigint == signal.SIG_IGN and sigterm == signal.SIG_DFL
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="workers are forked on Linux only")
+def test_output_buffered_before_the_workers_fork_is_written_once(tmp_path):
+    script = ("import sys\n"
+              "from drake_lfd.experiments.parallel_trials import trial_cluster\n"
+              "print('written before the cluster started')\n"  # piped: block-buffered, unflushed
+              "sys.stderr.write('said before the cluster started\\n')\n"
+              "with trial_cluster(2) as cluster:\n"
+              "    cluster.client().run(lambda: 0)\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=cli_env(),
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.count("written before the cluster started") == 1
+    assert done.stderr.count("said before the cluster started") == 1
+
+
+def test_runners_of_one_library_share_its_features_loaded_once():
+    from drake_lfd.experiments import parallel_trials
+    from drake_lfd.experiments.parallel_trials import BasePlacement, runner_spec
+    from drake_lfd.io.library import Library
+
+    parallel_trials._FEATURES.clear()
+    try:
+        paper5, paper6 = Library.open("paper5"), Library.open("paper6")
+        here, there = (runner_spec(TRANSFERRING, paper5, base=BasePlacement(x, 0.7, 0.0, 0.0)) for x in (-0.2, -0.3))
+        first, second = here.build(), there.build()
+        assert len(parallel_trials._FEATURES) == 1
+        assert first.features is second.features and set(first.features) == set(paper5.names)
+        other = runner_spec(TRANSFERRING, paper6).build()
+        assert other.features is not first.features and set(other.features) == set(paper6.names)
+        assert len(parallel_trials._FEATURES) == parallel_trials.FEATURE_SETS_PER_PROCESS == 2
+        runner_spec(TRANSFERRING, paper5, cost="fidelity").build()  # paper5 is the most recent again
+        fresh = runner_spec(TRANSFERRING, Library.open("paper5")).build()
+        assert fresh.features is first.features
+    finally:
+        parallel_trials._FEATURES.clear()
 
 
 @pytest.mark.parametrize("grid, message", [

@@ -86,6 +86,7 @@ class TrialRunner:
                  refine: bool = False):
         check_problem_size(task, features, cost=cost)  # a problem too large is refused before the pipeline is built
         self.task = task
+        self.features = features  # name -> Feature, read-only
         self._options = dict(features=features, planner=planner, policy=policy, with_table=with_table,
                              joint_check=joint_check, cost=cost, refine=refine,
                              config=config if config is not None else task.simulation)
