@@ -9,7 +9,8 @@ start-up included). The machine is shared and its speed drifts by a third over m
 (the same failing trial measured 7.3 s and 11.0 s on one day), so the runs go in the
 order 1, 2, 2, 1 (``--rounds 2``; each round adds such a pair of pairs): a drift that is
 steady over the runs then weighs the same on both. Prints every wall time, the speed-up
-(the 1-worker sum over the 2-worker sum; target: at least 1.7 on two cores), the load
+(the 1-worker sum over the 2-worker sum; target: at least 1.7 on two cores) overall and of
+each round, the load
 average before and after, and whether every ``sweep.jsonl`` table is the same row for row
 (every field but wall-clock ones, rows matched by their inputs).
 
@@ -75,6 +76,9 @@ def main() -> None:
                   f"{walls[workers][-1]:.1f} s wall, {successes} succeeded", flush=True)
     load_after = os.getloadavg()[0]
     same = all(len(table) == total and table == tables[0] for table in tables)
+    rounds = [f"{sum(walls[1][2 * r:2 * r + 2]) / sum(walls[2][2 * r:2 * r + 2]):.2f}x"
+              for r in range(len(walls[2]) // 2)]
+    print(f"speed-up of each round: {', '.join(rounds)}")
     print(f"speed-up on 2 workers: {sum(walls[1]):.1f} s / {sum(walls[2]):.1f} s = "
           f"{sum(walls[1]) / sum(walls[2]):.2f}x (target 1.7x); {os.cpu_count()} cores; "
           f"load average {load_before:.1f} before, {load_after:.1f} after")

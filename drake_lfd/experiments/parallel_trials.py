@@ -12,10 +12,14 @@ draws its concrete task from its own seed, so its outcome does not depend on whi
 process ran it, nor on the trials that ran before it there. With one worker (or one
 trial) and no scheduler, the trials run in this process and no cluster is started.
 
-A cluster costs about 2 s to start and stop (worker processes, each importing pydrake
-as it joins), so a command with several sets of trials (``paper``: three tasks) starts
-one with :func:`trial_cluster` and passes it to each :func:`run_trial_specs` call
-(``cluster=``); without ``cluster=``, each call starts and shuts down its own.
+On Linux a LocalCluster's worker processes are forked from this one
+(:data:`WORKER_START_METHOD`), so they start with pydrake imported: a 2-worker cluster
+starts in about 0.4 s. Spawned workers (other systems) import it as they join, about
+1.5 s. A command with several sets of trials (``paper``: three tasks) starts one
+cluster with :func:`trial_cluster` and passes it to each :func:`run_trial_specs` call
+(``cluster=``); without ``cluster=``, each call starts and shuts down its own. A process
+loads a library's features once for all the runners it builds (a sweep's base
+placements share them).
 
 Outcomes reach a callback as they finish (``as_completed``), or, with ``in_order``, in
 the order of the specs (a finished trial waits for the ones before it; on an interrupt,
@@ -265,8 +269,9 @@ def _worker_plugin():
     """A worker plugin for the processes of a LocalCluster, set up as each one joins:
     it makes the process ignore SIGINT (Ctrl-C reaches the whole process group, and only
     this process is to act on it: it shuts the cluster down; a worker would print its own
-    traceback), then imports :mod:`drake_lfd.experiments.simulation` (pydrake), so that
-    import happens while the cluster starts rather than in the first trial. Made here so
+    traceback) and take SIGTERM's default action, then imports
+    :mod:`drake_lfd.experiments.simulation` (pydrake; already there in a forked worker),
+    so that import happens while the cluster starts rather than in the first trial. Made here so
     that importing this module does not import dask (the class travels to the workers by
     value)."""
     from distributed import WorkerPlugin
