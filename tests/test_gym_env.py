@@ -1,6 +1,5 @@
 """The Gymnasium environment passes the conformance check and runs the MDP of ``mdp.py``."""
 
-import numpy as np
 import pytest
 
 gymnasium = pytest.importorskip("gymnasium")

@@ -5,7 +5,6 @@ fsynced); ``paper --out DIR`` to ``DIR/trials.jsonl``. SIGINT after the 2nd of 5
 leaves exactly those 2 trials on disk, and the command ends with one line, exit 1.
 """
 
-import json
 import os
 import signal
 import subprocess

@@ -18,7 +18,7 @@ from drake_lfd.core.dual_quaternion import (
     quaternion_from_axis_angle,
     quaternion_multiply,
 )
-from drake_lfd.core.features import Feature, task_feature_from_poses
+from drake_lfd.core.features import task_feature_from_poses
 
 X_AXIS, Y_AXIS, Z_AXIS = np.eye(3)
 

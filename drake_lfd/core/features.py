@@ -247,8 +247,8 @@ class Feature:
         for name, shape in expected.items():
             if num_deltas < 1 or getattr(self, name).shape != shape:
                 raise ValueError(
-                    f"a feature of n - 1 >= 1 deltas needs rotations (n - 1, 4), translations (n - 1, 3), "
-                    f"deltas (n - 1, 8) and poses (n, 8) or None; got "
+                    "a feature of n - 1 >= 1 deltas needs rotations (n - 1, 4), translations (n - 1, 3), "
+                    "deltas (n - 1, 8) and poses (n, 8) or None; got "
                     + ", ".join(f"{key} {getattr(self, key).shape}" for key in expected))
         check_unit_dual_quaternions(self.deltas, "deltas")
         if self.poses is not None:

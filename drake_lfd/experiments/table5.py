@@ -180,8 +180,8 @@ def markdown(rows: list[Row], span_feature=None) -> str:
         "",
         "## Rotation parts (`d_r`, quaternions w, x, y, z)",
         "",
-        f"`alpha` is Eq. 19's distance between our rotation and the paper's entry normalised to unit",
-        f"length (the paper rounds to one decimal, so its entries have norms 0.94 to 1.0); it is",
+        "`alpha` is Eq. 19's distance between our rotation and the paper's entry normalised to unit",
+        "length (the paper rounds to one decimal, so its entries have norms 0.94 to 1.0); it is",
         f"`2 sin(angle / 4)` of the rotation between them, so {ROTATION_MATCH} is about "
         f"{math.degrees(4 * math.asin(ROTATION_MATCH / 2)):.0f} deg.",
         "",
