@@ -1,17 +1,18 @@
 """Speed-up of ``drake-lfd sweep`` on 2 worker processes over 1, and whether the rows agree.
 
-Run: ``python benchmarks/bench_sweep.py [--trials 10] [--grid X0:X1:NX Y0:Y1:NY]``. It runs
-the same sweep twice as a user would, each a separate ``drake-lfd sweep`` process: the
-transferring task with ``paper5`` on a 2 x 2 grid of base placements around the task
-file's base, 10 trials each (40 trials), with ``--workers 1`` (in one process, no
-cluster) and with ``--workers 2`` (a LocalCluster of two worker processes; cluster
-start-up included). The machine is shared and its speed drifts by a third over minutes
-(the same failing trial measured 7.3 s and 11.0 s on one day), so the runs go in the
-order 1, 2, 2, 1 (``--rounds 2``; each round adds such a pair of pairs): a drift that is
-steady over the runs then weighs the same on both. Prints every wall time, the speed-up
-(the 1-worker sum over the 2-worker sum; target: at least 1.7 on two cores) overall and of
-each round, the load
-average before and after, and whether every ``sweep.jsonl`` table is the same row for row
+Run: ``python benchmarks/bench_sweep.py [--trials 10] [--grid X0:X1:NX Y0:Y1:NY] [--rounds 2]``
+(about 13 minutes). It runs the same sweep as a user would, each run a separate
+``drake-lfd sweep`` process: the transferring task with ``paper5`` on a 2 x 2 grid of base
+placements around the task file's base, 10 trials each (40 trials), with ``--workers 1``
+(in one process, no cluster) and with ``--workers 2`` (a LocalCluster of two worker
+processes; cluster start-up included). The machine is shared and its speed drifts by a
+third over minutes (the same failing trial measured 7.3 s and 11.0 s on one day; one round
+of this benchmark measured 2.06x, the next 1.70x), so the runs go in the order 1, 2, 2, 1
+workers, twice by default (``--rounds``): a drift that is steady over a round weighs the
+same on both, and a second round averages out more of the rest. Prints every wall time, the
+speed-up (the 1-worker sum over the 2-worker sum; target: at least 1.7 on two cores)
+overall and of each round, the load average before and after, and whether every
+``sweep.jsonl`` table is the same row for row
 (every field but wall-clock ones, rows matched by their inputs).
 
 Not for: measuring a single trial (``bench_pipeline.py``).
@@ -56,7 +57,7 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=10, help="trials per base placement")
     parser.add_argument("--grid", nargs=2, default=["-0.3:-0.2:2", "0.6:0.7:2"], metavar="A0:A1:N",
                         help="the x and y axes of --base-grid")
-    parser.add_argument("--rounds", type=int, default=1, help="rounds of runs in the order 1, 2, 2, 1 workers")
+    parser.add_argument("--rounds", type=int, default=2, help="rounds of runs in the order 1, 2, 2, 1 workers")
     args = parser.parse_args()
     placements = 1
     for axis in args.grid:
