@@ -151,13 +151,8 @@ class RunnerSpec:
         from drake_lfd.io.policy_files import load_policy
 
         policy = load_policy(self.policy_file) if self.policy_file else None
-        key = (self.library, self.fingerprint)
-        features = _FEATURES.get(key)
-        if features is None:
-            features = _FEATURES[key] = library_features(Library.open(self.library))
-            while len(_FEATURES) > FEATURE_SETS_PER_PROCESS:
-                _FEATURES.popitem(last=False)
-        _FEATURES.move_to_end(key)
+        features = _kept(_FEATURES, (self.library, self.fingerprint), FEATURE_SETS_PER_PROCESS,
+                         lambda: library_features(Library.open(self.library)))
         return TrialRunner(self.task(), features, policy=policy, **self.runner_options())
 
 
@@ -217,15 +212,20 @@ def trial_specs(runner: RunnerSpec, *, trials: int, seed: int, record_html=None)
 _RUNNERS: OrderedDict[RunnerSpec, object] = OrderedDict()
 
 
+def _kept(cache: OrderedDict, key, size: int, make: Callable[[], object]):
+    """``cache[key]``, made by ``make()`` if missing; ``cache`` keeps the ``size`` most
+    recently used entries."""
+    value = cache.pop(key, None)
+    if value is None:
+        value = make()
+    cache[key] = value
+    while len(cache) > size:
+        cache.popitem(last=False)
+    return value
+
+
 def _runner_for(spec: RunnerSpec):
-    runner = _RUNNERS.get(spec)
-    if runner is None:
-        runner = spec.build()
-        _RUNNERS[spec] = runner
-        while len(_RUNNERS) > RUNNERS_PER_WORKER:
-            _RUNNERS.popitem(last=False)
-    _RUNNERS.move_to_end(spec)
-    return runner
+    return _kept(_RUNNERS, spec, RUNNERS_PER_WORKER, spec.build)
 
 
 def run_trial_spec(spec: TrialSpec):

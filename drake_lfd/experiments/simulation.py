@@ -86,7 +86,6 @@ class TrialRunner:
                  refine: bool = False):
         check_problem_size(task, features, cost=cost)  # a problem too large is refused before the pipeline is built
         self.task = task
-        self.features = features  # name -> Feature, read-only
         self._options = dict(features=features, planner=planner, policy=policy, with_table=with_table,
                              joint_check=joint_check, cost=cost, refine=refine,
                              config=config if config is not None else task.simulation)
@@ -100,6 +99,11 @@ class TrialRunner:
         kinematics = self._runner.kinematics
         self._joint_limits = kinematics.position_limits()
         self._velocity_limits = kinematics.velocity_limits()
+
+    @property
+    def features(self) -> Mapping[str, Feature]:
+        """The library's features the trials are planned with (name -> Feature, read-only)."""
+        return self._options["features"]
 
     def _recorder(self) -> ClosedLoopRunner:
         if self._recording_runner is None:
