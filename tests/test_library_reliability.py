@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from drake_lfd.cli import main
+from drake_lfd.core.errors import InputError
 from drake_lfd.io.file_lock import exclusive_lock, shared_lock
 from drake_lfd.io.library import Library, is_unused_library_directory
 
@@ -107,6 +108,76 @@ def test_a_writer_waits_for_the_lock(library, tmp_path):
     assert process.returncode == 0, err
     assert "added 'third'" in out
     assert Library.open(library).names == ("first", "second", "third")
+
+
+# The second writer of a race to create a library, in its own process: the command found
+# the directory unused (a manifest temporary is debris), then create's own check listed the
+# debris just before the first writer's manifest temporary appeared.
+RACING_WRITER = """
+import sys
+import drake_lfd.io.library as library
+real, calls = library._temporaries, []
+def listed_too_early(directory):
+    calls.append(directory)
+    return [] if len(calls) == 2 else real(directory)
+library._temporaries = listed_too_early
+from drake_lfd.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_library_being_created_by_another_writer_is_waited_for(tmp_path):
+    """Four processes racing to create a library: one sees the first writer's manifest
+    temporary but no manifest yet. It waits for the lock and adds to the library the
+    first writer made, instead of calling the directory "not empty"."""
+    root = tmp_path / "lib"
+    made = tmp_path / "made"  # what the first writer's create_with ends with
+    assert main(["library", "add", str(made), str(write_log(tmp_path / "first.csv", seed=0)), "--name", "first",
+                 *IDENTITY]) == 0
+    log = write_log(tmp_path / "second.csv", seed=1)
+    root.mkdir()
+    with exclusive_lock(root / "library.lock"):  # the first writer, mid-create
+        (root / "demos").mkdir()
+        (root / "cache").mkdir()
+        temporary = root / ".library.json.r4c3e1.tmp"
+        temporary.write_text("{")
+        process = subprocess.Popen(
+            [sys.executable, "-c", RACING_WRITER, "library", "add", str(root), str(log), "--name", "second",
+             *IDENTITY], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )
+        time.sleep(3.0)  # start-up takes about 1 s
+        assert process.poll() is None, process.communicate()  # waiting, not refusing
+        for path in (made / "demos").iterdir():
+            path.rename(root / "demos" / path.name)
+        temporary.write_bytes((made / "library.json").read_bytes())
+        temporary.rename(root / "library.json")  # the first writer's manifest lands
+    out, err = process.communicate(timeout=60)
+    assert process.returncode == 0, err
+    assert "added 'second'" in out
+    assert Library.open(root).names == ("first", "second")
+
+
+def test_creating_in_a_non_empty_directory_without_a_library_lock_is_refused_at_once(tmp_path):
+    """No library writer was ever there: refused without waiting and without a lock file."""
+    root = tmp_path / "notes"
+    root.mkdir()
+    (root / "mine.txt").write_text("keep")
+    with pytest.raises(InputError, match="exists and is not empty"):
+        Library.create(root)
+    assert sorted(p.name for p in root.iterdir()) == ["mine.txt"]
+
+
+def test_creating_in_a_directory_with_a_lock_and_other_files_is_refused_under_the_lock(tmp_path):
+    """A lock file (a writer was there) but someone else's files: refused once the lock is
+    free, the files kept."""
+    root = tmp_path / "lib"
+    root.mkdir()
+    (root / "library.lock").write_text("")
+    (root / "mine.txt").write_text("keep")
+    with pytest.raises(InputError, match="exists and is not empty"):
+        Library.create(root)
+    assert sorted(p.name for p in root.iterdir()) == ["library.lock", "mine.txt"]
+    assert (root / "mine.txt").read_text() == "keep"
 
 
 def test_stale_temporaries_are_removed_by_the_next_write(library, tmp_path, capsys):

@@ -434,9 +434,12 @@ class Library:
         InputError
             ``path`` is a file, a library already (also when another process made it
             one meanwhile), or a directory holding anything but what a killed
-            ``create`` leaves (:func:`is_unused_library_directory`).
+            ``create`` leaves (:func:`is_unused_library_directory`). Where a library
+            writer has been (its lock file is there), that is decided under the lock: a
+            writer may be half-way through making it a library.
         """
         directory = Path(path)
+        not_empty = "exists and is not empty; choose a new directory for a library"
         if directory.exists():
             if not directory.is_dir():
                 raise InputError("exists and is not a directory", file=path)
@@ -444,7 +447,10 @@ class Library:
                 # (Checked after: another process may be making it a library right now.)
                 if (directory / MANIFEST_NAME).exists():
                     raise InputError("is a library already", file=path)
-                raise InputError("exists and is not empty; choose a new directory for a library", file=path)
+                if not (directory / LOCK_NAME).exists():
+                    raise InputError(not_empty, file=path)
+                # A library writer has been here and may be writing now (its manifest's
+                # temporary file is not yet a manifest): decide under the lock, below.
         created = not directory.exists()
         manifest = Manifest.new(RigidTransform() if X_tool0_E is None else X_tool0_E)
         try:
@@ -453,6 +459,8 @@ class Library:
                 if (directory / MANIFEST_NAME).exists():  # another process was quicker
                     created = False
                     raise InputError("is a library already", file=path)
+                if not is_unused_library_directory(directory):  # no writer is at work now
+                    raise InputError(not_empty, file=path)
                 _make_directory(directory / DEMOS_DIRECTORY)
                 _make_directory(directory / CACHE_DIRECTORY)
                 write_manifest(directory, manifest)
