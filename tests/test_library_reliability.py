@@ -9,6 +9,7 @@ The concurrency and kill rounds are ``benchmarks/stress_library.py`` with fewer 
 import importlib.util
 import json
 import math
+import os
 import subprocess
 import sys
 import time
@@ -114,12 +115,15 @@ def test_a_writer_waits_for_the_lock(library, tmp_path):
 # the directory unused (a manifest temporary is debris), then create's own check listed the
 # debris just before the first writer's manifest temporary appeared.
 RACING_WRITER = """
-import sys
+import os, pathlib, sys
 import drake_lfd.io.library as library
 real, calls = library._temporaries, []
 def listed_too_early(directory):
     calls.append(directory)
-    return [] if len(calls) == 2 else real(directory)
+    if len(calls) != 2:
+        return real(directory)
+    pathlib.Path(os.environ["LISTED"]).touch()  # create's check is done: the lock is next
+    return []
 library._temporaries = listed_too_early
 from drake_lfd.cli import main
 sys.exit(main(sys.argv[1:]))
@@ -141,12 +145,18 @@ def test_a_library_being_created_by_another_writer_is_waited_for(tmp_path):
         (root / "cache").mkdir()
         temporary = root / ".library.json.r4c3e1.tmp"
         temporary.write_text("{")
+        listed = tmp_path / "listed"
         process = subprocess.Popen(
             [sys.executable, "-c", RACING_WRITER, "library", "add", str(root), str(log), "--name", "second",
              *IDENTITY], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            env={**os.environ, "LISTED": str(listed)},
         )
-        time.sleep(3.0)  # start-up takes about 1 s
-        assert process.poll() is None, process.communicate()  # waiting, not refusing
+        deadline = time.monotonic() + 60.0
+        while not listed.exists() and process.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert listed.exists(), process.communicate()
+        time.sleep(1.0)
+        assert process.poll() is None, process.communicate()  # waiting for the lock, not refusing
         for path in (made / "demos").iterdir():
             path.rename(root / "demos" / path.name)
         temporary.write_bytes((made / "library.json").read_bytes())
