@@ -131,7 +131,7 @@ sys.exit(main(sys.argv[1:]))
 
 
 def test_a_library_being_created_by_another_writer_is_waited_for(tmp_path):
-    """Four processes racing to create a library: one sees the first writer's manifest
+    """Two writers racing to create a library: the second sees the first's manifest
     temporary but no manifest yet. It waits for the lock and adds to the library the
     first writer made, instead of calling the directory "not empty"."""
     root = tmp_path / "lib"
