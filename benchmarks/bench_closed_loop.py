@@ -38,7 +38,7 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from drake_lfd.diagrams.closed_loop import plan_through_joint_configurations, run_closed_loop
-from drake_lfd.io.simulation_config import CLOSED_LOOP_TIME_STEP_S, PipelineConfig, StationConfig
+from drake_lfd.io.simulation_config import CLOSED_LOOP_TIME_STEP_S, CONTROLLER_METHODS, PipelineConfig, StationConfig
 from drake_lfd.diagrams.pipeline import build_pipeline
 from drake_lfd.systems.differential_ik import pose_error
 from drake_lfd.robot.kinematics import UR5eKinematics
@@ -86,10 +86,11 @@ def path_tracking_errors(result, plan):
     return position.max(), math.sqrt(np.mean(position**2)), rotation.max()
 
 
-def per_call_costs(plan, time_step):
+def per_call_costs(plan, time_step, controller):
     """Median cost (us) of one controller update, one monitor update and one plant step."""
     config = PipelineConfig()
     config.station.time_step = time_step
+    config.controller.method = controller
     loop = build_pipeline(plan=plan, obstacles=OBSTACLES, safety_shells=SAFETY_SHELLS, with_table=False,
                           config=config)
     context = loop.CreateDefaultContext()
@@ -158,7 +159,9 @@ def run_once(plan, time_step, controller):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--time-step", type=float, default=CLOSED_LOOP_TIME_STEP_S, help="plant step, s")
-    parser.add_argument("--controller", default="drake", choices=["drake", "pseudo_inverse"])
+    parser.add_argument("--controller", default="compiled", choices=list(CONTROLLER_METHODS),
+                        help="compiled (the default: the plan's joint path in Drake's C++ systems), or the Python "
+                             "task-space controller with Drake's law (drake) or the paper's (pseudo_inverse)")
     parser.add_argument("--compare", action="store_true", help="also run plant steps of 1, 2 and 4 ms")
     args = parser.parse_args(argv)
 
@@ -168,7 +171,7 @@ def main(argv=None):
     if args.compare:
         steps = sorted({1e-3, 2e-3, 4e-3, args.time_step})
     results = [run_once(plan, step, args.controller) for step in steps]
-    for name, cost in per_call_costs(plan, args.time_step).items():
+    for name, cost in per_call_costs(plan, args.time_step, args.controller).items():
         print(f"  {name}: {cost:.0f} us per call")
     return results
 

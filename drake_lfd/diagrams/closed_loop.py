@@ -51,7 +51,11 @@ from drake_lfd.diagrams.plan_markers import draw_plan
 from drake_lfd.robot.initial_ik import InitialConfiguration, solve_initial_configuration
 from drake_lfd.robot.kinematics import NUM_JOINTS, UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene
+from drake_lfd.systems.joint_trajectory_controller import joint_trajectory_of_plan
 from drake_lfd.systems.shell_monitor import BoxClearance
+
+# The controller of runs whose task changes while the arm moves (replanning).
+TASK_SPACE_METHOD = "drake"
 
 __all__ = [
     "CriticalError",
@@ -254,6 +258,14 @@ class ClosedLoopRunner:
         # The collision scene of the initial inverse kinematics, built once for all trials.
         self._ik_scene = KinematicScene(station.workcell)
         self._velocity_limits = station.plant.GetVelocityUpperLimits()[:NUM_JOINTS].copy()
+        self._task_space: ClosedLoopRunner | None = None
+
+    def _task_space_runner(self) -> "ClosedLoopRunner":
+        """A runner on a sibling pipeline with the Python task-space controller (made once)."""
+        if self._task_space is None:
+            self._task_space = ClosedLoopRunner(self.pipeline.with_controller(TASK_SPACE_METHOD),
+                                                record_meshcat=self.meshcat)
+        return self._task_space
 
     def plan(self, task: ConcreteTask | None = None) -> ScheduledPlan:
         """Resets the Context, sets the task and plans it (what :meth:`run` starts with)."""
@@ -304,6 +316,12 @@ class ClosedLoopRunner:
         result : ClosedLoopResult or None
             None when nothing was planned.
         """
+        if task_changes and self.pipeline.compiled:
+            # Replanning during a run: the plan in force changes inside the Diagram, which
+            # the Python controller follows from the plan port (the compiled one tracks a
+            # joint path set before the run).
+            return self._task_space_runner().run(task, q_initial=q_initial, record_html=record_html,
+                                                 task_changes=task_changes)
         setup_start = time.perf_counter()
         pipeline, station, simulator = self.pipeline, self.pipeline.station, self.simulator
         if scheduled is None:
@@ -325,6 +343,9 @@ class ClosedLoopRunner:
             q_initial = initial_configuration.q
         q_initial = np.asarray(q_initial, dtype=float)
         station.set_initial_positions(context, q_initial)
+        if pipeline.compiled:
+            pipeline.controller.set_trajectory(joint_trajectory_of_plan(scheduled, q_initial, pipeline.law))
+            pipeline.controller.set_initial_command(context, q_initial)
         pipeline.logger.FindMutableLog(context).Clear()
         visualizer = station.visualizer
         recording = record_html is not None and visualizer is not None

@@ -23,6 +23,7 @@ Not for: running a simulation (``closed_loop.py``) or judging one
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Mapping
 
 import numpy as np
@@ -35,7 +36,7 @@ from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
 from drake_lfd.core.features import Feature
 from drake_lfd.core.tasks import Box, ConcreteTask
 from drake_lfd.core.timing import TimedPlan
-from drake_lfd.io.simulation_config import PipelineConfig
+from drake_lfd.io.simulation_config import COMPILED_METHOD, PipelineConfig
 from drake_lfd.diagrams.station import Station
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.q_learning import QPolicy
@@ -45,6 +46,7 @@ from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME
 from drake_lfd.robot.workcell import Workcell, table_under_robot
 from drake_lfd.systems.differential_ik import DifferentialIKController
 from drake_lfd.systems.feature_library import FeatureLibrarySystem
+from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryController, law_for_plant
 from drake_lfd.systems.plan_trajectory_source import PlanTrajectorySource
 from drake_lfd.systems.planner import PlannerSystem
 from drake_lfd.systems.shell_monitor import ShellMonitor
@@ -162,6 +164,12 @@ class Pipeline(Diagram):
         refine: bool = False,
     ):
         super().__init__()
+        # What it was built from, for a sibling with another controller (``with_controller``).
+        self._options = dict(workcell=workcell, X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles,
+                             safety_shells=safety_shells, tool=tool, with_table=with_table, features=features,
+                             planner=planner, policy=policy, plan=plan, config=config, meshcat=meshcat,
+                             accept_demonstrations=accept_demonstrations, joint_check=joint_check, cost=cost,
+                             refine=refine)
         config = (PipelineConfig() if config is None else config).checked()
         self.config = config
         if plan is None and features is None:
@@ -194,12 +202,20 @@ class Pipeline(Diagram):
             plan_port = constant.get_output_port()
         self.source = builder.AddNamedSystem("plan_trajectory_source", PlanTrajectorySource())
         controller_plant = station.controller_plant
-        self.controller = builder.AddNamedSystem("differential_ik", DifferentialIKController(
-            plant=controller_plant, model=station.controller_model,
-            frame_E=controller_plant.GetFrameByName(END_EFFECTOR_FRAME_NAME),
-            time_step=config.controller.time_step, method=config.controller.method,
-            position_gain=config.controller.position_gain,
-            velocity_limit_fraction=config.controller.velocity_limit_fraction))
+        frame_E = controller_plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)
+        #: The controller's law on the controller plant (the compiled controller's limits,
+        #: and following a plan that has no joint path).
+        self.law = law_for_plant(controller_plant, station.controller_model, frame_E, config.controller)
+        self.compiled = config.controller.method == COMPILED_METHOD
+        if self.compiled:
+            self.controller = builder.AddNamedSystem(
+                "differential_ik", JointTrajectoryController.for_law(self.law))
+        else:
+            self.controller = builder.AddNamedSystem("differential_ik", DifferentialIKController(
+                plant=controller_plant, model=station.controller_model, frame_E=frame_E,
+                time_step=config.controller.time_step, method=config.controller.method,
+                position_gain=config.controller.position_gain,
+                velocity_limit_fraction=config.controller.velocity_limit_fraction))
         scene = station.scene
         self.monitor = builder.AddNamedSystem("shell_monitor", ShellMonitor(
             plant=station.plant, robot_geometry_ids=scene.robot_geometry_ids,
@@ -213,8 +229,9 @@ class Pipeline(Diagram):
             if accept_demonstrations:
                 builder.ExportInput(self.library.demonstration_input_port, "demonstration")
         builder.Connect(plan_port, self.source.plan_input_port)
-        builder.Connect(self.source.X_WE_desired_output_port, self.controller.X_WE_desired_input_port)
-        builder.Connect(self.source.V_WE_desired_output_port, self.controller.V_WE_desired_input_port)
+        if not self.compiled:
+            builder.Connect(self.source.X_WE_desired_output_port, self.controller.X_WE_desired_input_port)
+            builder.Connect(self.source.V_WE_desired_output_port, self.controller.V_WE_desired_input_port)
         builder.Connect(self.controller.q_command_output_port, station.GetInputPort(station.port_name("position_command")))
         builder.Connect(station.GetOutputPort(station.port_name("position_measured")), self.controller.q_measured_input_port)
         builder.Connect(station.GetOutputPort("query_object"), self.monitor.query_object_input_port)
@@ -230,6 +247,14 @@ class Pipeline(Diagram):
         builder.BuildInto(self)
         self.set_name("pipeline")
         self.station = station
+
+    def with_controller(self, method: str) -> "Pipeline":
+        """A new pipeline like this one (same scene, library, planner, Meshcat) with the
+        controller ``method`` (``"compiled"``, ``"drake"``, ``"pseudo_inverse"``)."""
+        options = dict(self._options, workcell=self.workcell)
+        options["config"] = dataclasses.replace(
+            self.config, controller=dataclasses.replace(self.config.controller, method=method))
+        return Pipeline(**options)
 
     @property
     def plan_output_port(self):

@@ -32,6 +32,8 @@ __all__ = [
     "PipelineConfig",
     "STATION_TIME_STEP_S",
     "CLOSED_LOOP_TIME_STEP_S",
+    "COMPILED_METHOD",
+    "CONTROLLER_METHODS",
 ]
 
 # The plant step of a bare station (fine enough for any use) and of a closed-loop run
@@ -39,6 +41,12 @@ __all__ = [
 # configurations, at about 3x the speed; benchmarks/bench_closed_loop.py).
 STATION_TIME_STEP_S = 1e-3
 CLOSED_LOOP_TIME_STEP_S = 5e-3
+
+# The controller methods: the compiled joint-space tracker (the default; Drake's C++
+# systems, ``systems/joint_trajectory_controller.py``), and the Python task-space
+# controller with Drake's differential-IK law or the paper's pseudo-inverse (Eq. 35-38).
+COMPILED_METHOD = "compiled"
+CONTROLLER_METHODS = (COMPILED_METHOD, "drake", "pseudo_inverse")
 
 
 @dataclasses.dataclass
@@ -95,8 +103,11 @@ class ControllerConfig:
     Attributes
     ----------
     method : str
-        ``"drake"`` (Drake's differential IK with joint limits) or ``"pseudo_inverse"``
-        (the paper's Eq. 35-38).
+        ``"compiled"`` (the plan's joint path tracked by compiled Drake systems, the same
+        feedback in joint space, :mod:`drake_lfd.systems.joint_trajectory_controller`),
+        ``"drake"`` (the Python task-space controller with Drake's differential IK and
+        joint limits) or ``"pseudo_inverse"`` (the Python controller with the paper's
+        Eq. 35-38).
     time_step : float
         Update period, s; also the drive's command period in a closed loop.
     position_gain : float
@@ -105,7 +116,7 @@ class ControllerConfig:
         Fraction of the UR5e's joint speed limits the controller may command.
     """
 
-    method: str = "drake"
+    method: str = COMPILED_METHOD
     time_step: float = 0.01
     position_gain: float = 20.0
     velocity_limit_fraction: float = 0.97
@@ -201,8 +212,9 @@ class PipelineConfig:
         if not (math.isfinite(self.settle_s) and self.settle_s >= 0):
             raise InputError(f"must be a finite number >= 0, got {self.settle_s!r}", file=file,
                              field="simulation.settle_s")
-        if self.controller.method not in ("drake", "pseudo_inverse"):
-            raise InputError(f"must be 'drake' or 'pseudo_inverse', got {self.controller.method!r}",
+        if self.controller.method not in CONTROLLER_METHODS:
+            raise InputError(f"must be one of {', '.join(repr(m) for m in CONTROLLER_METHODS)}, "
+                             f"got {self.controller.method!r}",
                              file=file, field="simulation.controller.method")
         if not 0 < self.controller.velocity_limit_fraction <= 1:
             raise InputError("must be in (0, 1]", file=file, field="simulation.controller.velocity_limit_fraction")

@@ -1,0 +1,229 @@
+"""The compiled closed loop: the plan's joint path tracked by Drake's own C++ systems.
+
+At run time a checked plan is already a timed joint path (``PlanResult.joint_path``, the
+one the differential-IK law commands, sampled every controller period), and its SE(3)
+path is that path's forward kinematics. :class:`JointTrajectoryController` tracks it
+with no Python in the 100 Hz loop: a subsystem Diagram of pydrake primitives::
+
+    TrajectorySource(q_d(t), derivative) --[q_d; qdot_d]--\\
+                                                          Multiplexer -> MatrixGain -> Saturation
+    q_measured ------------------------------------------/   (v)        (joint speed limits)
+        -> LinearSystem (discrete, period dt: the command integrator) -> Saturation (position limits)
+        -> q_command
+
+with the same law as the Python controller (``differential_ik.py``), written in joint space:
+
+    v_k = qdot_d(t_k) + K (q_d(t_k) - q_measured(t_k)),    |v_k,j| <= fraction * vmax_j
+    q_command,k = q_command,k-1 + dt v_k                    (Eq. 37-38's Euler step)
+
+For small errors ``J^-1 (X_WE_desired [-] X_WE(q_measured)) = q_d - q_measured`` to first
+order, so this is the task-space law's feedback (gain K = 20 /s, integrated on the
+command side: integral action on the tracking error) with the feed-forward ``J^-1 V_d``
+of a path that already is the law's. The command integrator is a discrete
+``LinearSystem`` (``x <- x + dt v``) whose output ``y = x + dt v`` feeds through: the
+drive samples, at the same instant ``t_k``, the command computed from the state measured
+then, so no period of delay is added (the Python controller gets the same by updating
+0.1 ms before the drive samples). Limits: the commanded joint speeds are clipped per
+joint to ``velocity_limit_fraction`` of the UR5e's limits and the command to the joint
+position limits (the Python law scales the whole motion instead; plans are timed within
+0.9 of the limits, so on the paper's tasks neither binds).
+
+The desired joint trajectory is a cubic Hermite spline through the path's samples with
+central-difference velocities (the velocity at ``t_k`` is the mean of the two adjacent
+sample-to-sample velocities, so the command held over a period is centred on it). It is
+a property of the System (``TrajectorySource.UpdateTrajectory``), set per run by
+``closed_loop.py`` before simulating; :func:`joint_trajectory_of_plan` makes it, from the
+plan's checked joint path, or (a plan made without the check, or given as an SE(3)
+motion) by following the plan kinematically with the controller's law.
+
+Not for: the task-space Python controller (``differential_ik.py``, the paper's
+baseline), the drive (``diagrams/station.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.primitives import (
+    Adder, MatrixGain, Multiplexer, Saturation, TrajectorySource, ZeroOrderHold,
+)
+from pydrake.trajectories import PiecewisePolynomial
+
+from drake_lfd.planning.replanning import ScheduledPlan
+from drake_lfd.robot.differential_ik_law import DEFAULT_POSITION_GAIN, DEFAULT_TIME_STEP_S, DifferentialIKLaw
+from drake_lfd.systems.differential_ik import COMMAND_READY_BEFORE_SAMPLE_S
+
+__all__ = ["JointTrajectoryController", "joint_trajectory_of_plan", "joint_spline", "law_for_plant",
+           "JOINT_PATH_AGREEMENT_M"]
+
+# A plan's joint path is used as it is when its forward kinematics meets the plan's
+# critical configurations this closely (a path that no longer belongs to the plan, for
+# example after a splice, is re-derived instead).
+JOINT_PATH_AGREEMENT_M = 1e-3
+
+
+def joint_spline(t: np.ndarray, q: np.ndarray) -> PiecewisePolynomial:
+    """Cubic Hermite spline through samples ``q`` (m, n) at times ``t`` (m,), with
+    central-difference velocities (zero at both ends: plans start and end at rest)."""
+    t = np.asarray(t, dtype=float)
+    q = np.asarray(q, dtype=float)
+    if len(t) < 2:
+        t, q = np.array([t[0], t[0] + 1.0]), np.vstack([q[0], q[0]])
+    qdot = np.gradient(q, t, axis=0)
+    qdot[0] = qdot[-1] = 0.0
+    return PiecewisePolynomial.CubicHermite(t, q.T, qdot.T)
+
+
+def _follow(scheduled: ScheduledPlan, q_initial: np.ndarray, law: DifferentialIKLaw,
+            corrections: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """The joint path of ``scheduled`` from ``q_initial``, one sample per period from the
+    plan's start: t (m,), q (m, 6).
+
+    Each sample is the law's Euler step from the previous one (measured = commanded,
+    as the plan-time check follows a plan), then ``corrections`` Newton steps of the
+    law's feedback onto the plan's pose at that time, so the path's forward kinematics
+    is the plan (without them the kinematic follow lags it by up to 0.8 mm).
+    """
+    dt = law.time_step
+    duration = scheduled.timed.duration
+    steps = int(math.ceil(duration / dt - 1e-9)) + 1
+    q = np.array(q_initial, dtype=float)
+    path = [q]
+    zero = np.zeros(6)
+    for k in range(steps):
+        t = scheduled.start_time_s + k * dt
+        q = q + dt * law.joint_velocity(q, q, scheduled.X_WE_desired(t), scheduled.V_WE_desired(t))
+        if law.position_gain > 0.0:
+            X_next = scheduled.X_WE_desired(t + dt)
+            for _ in range(corrections):
+                # v = K J^-1 (X_next [-] X(q)): v / K is a Newton step toward X_next.
+                q = q + law.joint_velocity(q, q, X_next, zero) / law.position_gain
+        path.append(q)
+    return scheduled.start_time_s + dt * np.arange(len(path)), np.array(path)
+
+
+def _path_matches_plan(scheduled: ScheduledPlan, q_initial: np.ndarray, law: DifferentialIKLaw) -> bool:
+    path = scheduled.result.joint_path
+    if path is None or len(path.q) < 2 or not np.array_equal(path.q[0], q_initial):
+        return False
+    timed = scheduled.timed
+    for i in timed.critical_indices:
+        k = int(round(timed.times[i] / law.time_step))
+        if k >= len(path.q):
+            return False
+        # Due between two samples: the nearer one is within half a period of motion.
+        X_path, X_plan = law.X_WE(path.q[k]), scheduled.X_WE_desired(scheduled.start_time_s + timed.times[i])
+        tolerance = JOINT_PATH_AGREEMENT_M + 0.5 * law.time_step * 1.0  # 1 m/s tool speed at most
+        if np.linalg.norm(X_path.translation() - X_plan.translation()) > tolerance:
+            return False
+    return True
+
+
+def joint_trajectory_of_plan(scheduled: ScheduledPlan, q_initial: np.ndarray,
+                             law: DifferentialIKLaw) -> PiecewisePolynomial:
+    """The desired joint trajectory of a run, in simulation time.
+
+    The plan's checked joint path when it starts at ``q_initial`` and still belongs to
+    the plan (its forward kinematics meets the critical configurations); otherwise the
+    path the law takes following the SE(3) plan from ``q_initial`` (``law``: the
+    controller's period, gain and limits, on any plant of the arm).
+    """
+    q_initial = np.asarray(q_initial, dtype=float)
+    if _path_matches_plan(scheduled, q_initial, law):
+        path = scheduled.result.joint_path
+        return joint_spline(scheduled.start_time_s + np.asarray(path.t, dtype=float), path.q)
+    return joint_spline(*_follow(scheduled, q_initial, law))
+
+
+class JointTrajectoryController(Diagram):
+    """Joint position command tracking a desired joint trajectory, in compiled systems.
+
+    .. pydrake_system::
+
+        name: JointTrajectoryController
+        input_ports:
+        - q_measured
+        output_ports:
+        - q_command
+
+    (6,) joint positions in UR joint order. See the module docstring for the law.
+
+    Parameters
+    ----------
+    position_lower, position_upper : array (6,)
+        Joint position limits, rad.
+    velocity_limits : array (6,)
+        Joint speeds commanded at most, rad/s (already scaled by the speed fraction).
+    time_step : float
+        Update period, s (the drive's command period).
+    position_gain : float
+        K, 1/s.
+    """
+
+    def __init__(self, *, position_lower, position_upper, velocity_limits,
+                 time_step: float = DEFAULT_TIME_STEP_S, position_gain: float = DEFAULT_POSITION_GAIN):
+        super().__init__()
+        n = len(position_lower)
+        self.time_step = float(time_step)
+        self.position_gain = float(position_gain)
+        builder = DiagramBuilder()
+        # A placeholder until a run sets its trajectory: hold zero.
+        self._source = builder.AddNamedSystem("joint_trajectory", TrajectorySource(
+            PiecewisePolynomial(np.zeros((n, 1))), output_derivative_order=1, zero_derivatives_beyond_limits=True))
+        mux = builder.AddNamedSystem("desired_and_measured", Multiplexer([2 * n, n]))
+        identity = np.eye(n)
+        K, dt = self.position_gain, self.time_step
+        # dt * v = dt * (K q_d + qdot_d - K q_measured): one step of the command.
+        step = builder.AddNamedSystem("feed_forward_and_feedback", MatrixGain(
+            dt * np.hstack([K * identity, identity, -K * identity])))
+        speed_limit = builder.AddNamedSystem("joint_speed_limits", Saturation(
+            -dt * np.asarray(velocity_limits, dtype=float), dt * np.asarray(velocity_limits, dtype=float)))
+        integrate = builder.AddNamedSystem("euler_step", Adder(2, n))
+        position_limit = builder.AddNamedSystem("joint_position_limits", Saturation(
+            np.asarray(position_lower, dtype=float), np.asarray(position_upper, dtype=float)))
+        # The command: sampled (and so integrated) just before the drive samples it.
+        self._command = builder.AddNamedSystem("command", ZeroOrderHold(
+            dt, n, offset_sec=max(dt - COMMAND_READY_BEFORE_SAMPLE_S, 0.0)))
+        builder.Connect(self._source.get_output_port(), mux.get_input_port(0))
+        builder.ExportInput(mux.get_input_port(1), "q_measured")
+        builder.Connect(mux.get_output_port(), step.get_input_port())
+        builder.Connect(step.get_output_port(), speed_limit.get_input_port())
+        builder.Connect(speed_limit.get_output_port(), integrate.get_input_port(0))
+        builder.Connect(self._command.get_output_port(), integrate.get_input_port(1))
+        builder.Connect(integrate.get_output_port(), position_limit.get_input_port())
+        builder.Connect(position_limit.get_output_port(), self._command.get_input_port())
+        builder.ExportOutput(self._command.get_output_port(), "q_command")
+        builder.BuildInto(self)
+        self.set_name("joint_trajectory_controller")
+        self.q_measured_input_port = self.GetInputPort("q_measured")
+        self.q_command_output_port = self.GetOutputPort("q_command")
+
+    @classmethod
+    def for_law(cls, law: DifferentialIKLaw) -> "JointTrajectoryController":
+        """A controller with ``law``'s limits, period and gain."""
+        return cls(position_lower=law.position_lower, position_upper=law.position_upper,
+                   velocity_limits=law.velocity_limits, time_step=law.time_step, position_gain=law.position_gain)
+
+    def set_trajectory(self, trajectory: PiecewisePolynomial) -> None:
+        """The desired joint trajectory (simulation time), held before and after it."""
+        self._source.UpdateTrajectory(trajectory)
+
+    def set_initial_command(self, root_context: Context, q) -> None:
+        """Sets the command integrator's state to ``q`` (6,), e.g. the initial positions."""
+        context = self._command.GetMyMutableContextFromRoot(root_context)
+        context.SetDiscreteState(np.asarray(q, dtype=float))
+
+    def desired_positions(self, root_context: Context) -> np.ndarray:
+        """q_d at the context's time, (6,)."""
+        n = self.q_measured_input_port.size()
+        return self._source.get_output_port().Eval(self._source.GetMyContextFromRoot(root_context))[:n].copy()
+
+
+def law_for_plant(plant, model, frame_E, config) -> DifferentialIKLaw:
+    """The controller's law (period, gain, speed fraction of a ``ControllerConfig``)."""
+    return DifferentialIKLaw(plant=plant, model=model, frame_E=frame_E, time_step=config.time_step,
+                             position_gain=config.position_gain,
+                             velocity_limit_fraction=config.velocity_limit_fraction)
+
