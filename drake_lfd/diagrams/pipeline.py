@@ -43,6 +43,7 @@ from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.joint_path import JointPathChecker, JointPathLimits
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME
+from drake_lfd.robot.scene import KinematicScene
 from drake_lfd.robot.workcell import Workcell, table_under_robot
 from drake_lfd.systems.differential_ik import DifferentialIKController
 from drake_lfd.systems.feature_library import FeatureLibrarySystem
@@ -217,10 +218,13 @@ class Pipeline(Diagram):
                 position_gain=config.controller.position_gain,
                 velocity_limit_fraction=config.controller.velocity_limit_fraction))
         scene = station.scene
+        # The monitor measures the joint-state log (same samples) when both have one period.
+        from_log = config.monitor.from_log and config.monitor.period == config.log_period
         self.monitor = builder.AddNamedSystem("shell_monitor", ShellMonitor(
             plant=station.plant, robot_geometry_ids=scene.robot_geometry_ids,
             shell_geometry_ids=scene.keep_out_geometry_ids, period=config.monitor.period,
-            stop_on_penetration=config.monitor.stop_on_penetration, names=scene.names, kinds=scene.kinds))
+            stop_on_penetration=config.monitor.stop_on_penetration, names=scene.names, kinds=scene.kinds,
+            scene=KinematicScene(workcell) if from_log else None))
 
         # Pipeline order, one Connect per arrow.
         if self.planner is not None:

@@ -124,10 +124,23 @@ class ControllerConfig:
 
 @dataclasses.dataclass
 class MonitorConfig:
-    """The shell monitor: sampling period (s) and whether a penetration ends the run."""
+    """The shell monitor (:mod:`drake_lfd.systems.shell_monitor`).
+
+    Attributes
+    ----------
+    period : float
+        Sampling period, s.
+    stop_on_penetration : bool
+        A penetration ends the run (at its sample: the monitor then samples itself).
+    from_log : bool
+        Measure the joint-state log's samples in batches (at each critical configuration
+        and at the end of a run), not with a Python event every period; the records are
+        the same. Needs the logger's period; a stop at a penetration samples with events.
+    """
 
     period: float = 0.01
     stop_on_penetration: bool = False
+    from_log: bool = True
 
 
 @dataclasses.dataclass

@@ -35,7 +35,6 @@ __all__ = ['DEFAULT_MONITOR_PERIOD_S', 'BoxClearance', 'ShellMonitor']
 
 DEFAULT_MONITOR_PERIOD_S = 0.01
 
-
 @dataclass(frozen=True)
 class BoxClearance:
     """The closest approach of the robot to one box during a run.
@@ -125,6 +124,7 @@ class ShellMonitor(LeafSystem):
         stop_on_penetration: bool = False,
         names: Mapping | None = None,
         kinds: Mapping | None = None,
+        scene=None,
     ):
         super().__init__()
         self._plant = plant
@@ -143,9 +143,11 @@ class ShellMonitor(LeafSystem):
         # State: [min distance per box (n), index of the closest robot geometry (n), time
         # of the minimum (n), the joint positions at the previous sample (J, nan before
         # the first), the joints' travel so far (J, sum of |dq| over samples), each pair's
-        # wake-up travel (P, -inf: query at the next sample)].
+        # wake-up travel (P, -inf: query at the next sample), the number of samples
+        # measured (1)].
         initial = np.concatenate([np.full(n, np.inf), np.full(n, -1.0), np.full(n, np.nan),
-                                  np.full(num_joints, np.nan), np.zeros(num_joints), np.full(num_pairs, -np.inf)])
+                                  np.full(num_joints, np.nan), np.zeros(num_joints), np.full(num_pairs, -np.inf),
+                                  [0.0]])
         self._state_index = self.DeclareDiscreteState(initial)
         self.query_object_input_port = self.DeclareAbstractInputPort(
             "query_object", AbstractValue.Make(QueryObject())
@@ -159,12 +161,31 @@ class ShellMonitor(LeafSystem):
         #: Distance queries made so far (a diagnostic, not part of the Context's state).
         self.num_pair_queries = 0
         self._prepared = False  # names are read from SceneGraph at the first update
-        if n and self._robot_ids:
+        # Batches: given a kinematic scene of the same work cell (and no stop at a
+        # penetration, which must end the run at its sample), the monitor has no event:
+        # :meth:`measure_log` measures the joint-state log's samples (the same states, see
+        # above) on that scene, a batch at a time, and the Python work of an event every
+        # period is saved.
+        self._scene = scene if (scene is not None and not self._stop_on_penetration) else None
+        if self._scene is not None:
+            self._scene_plant_context = scene.plant.GetMyMutableContextFromRoot(scene.context)
+            self._scene_graph_context = scene.scene_graph.GetMyContextFromRoot(scene.context)
+            self._scene_robot_ids = list(scene.geometry.robot_geometry_ids)
+            self._scene_box_ids = list(scene.geometry.keep_out_geometry_ids)
+            if len(self._scene_robot_ids) != m or len(self._scene_box_ids) != n:
+                raise ValueError("the monitor's scene has other geometries than the monitored one")
+        elif n and self._robot_ids:
             # An unrestricted update, like the plant's own step: it samples the same state
             # as a periodic publisher (the joint-state logger) at the same instant, so the
             # minimum can be recomputed exactly from the logged joint positions. (A discrete
             # update would run after the plant's step and see the next state.)
             self.DeclarePeriodicUnrestrictedUpdateEvent(self._period, 0.0, self._update)
+
+    @property
+    def measures_log(self) -> bool:
+        """Whether the monitor measures a joint-state log (:meth:`measure_log`) instead of
+        sampling with an event of its own."""
+        return self._scene is not None
 
     @staticmethod
     def AddToBuilder(*, builder, plant: MultibodyPlant, query_object_output_port,
@@ -186,17 +207,38 @@ class ShellMonitor(LeafSystem):
         return self._period
 
     def _update(self, context, new_state):
+        """One sample, now (the monitor without a sample buffer)."""
         query_object = self.query_object_input_port.Eval(context)
         if not self._prepared:
             self._prepare(query_object)
-        n, m, num_joints = len(self._box_ids), len(self._robot_ids), self._num_joints
         # Plain Python floats: a few dozen numbers, where numpy's per-call overhead would
         # cost more than the arithmetic.
         state = context.get_discrete_state(self._state_index).value().tolist()
-        records, wake = state[:n], state[3 * n + 2 * num_joints:]
         pruning = self.robot_positions_input_port.HasValue(context)
+        q = self.robot_positions_input_port.Eval(context).tolist() if pruning else None
+        penetration = self._sample(state, q, context.get_time(), query_object.ComputeSignedDistancePairClosestPoints,
+                                   self._robot_ids, self._box_ids)
+        state[-1] += 1.0
+        new_state.get_mutable_discrete_state().get_mutable_vector(self._state_index).SetFromVector(state)
+        if self._stop_on_penetration and penetration is not None:
+            depth, i, j = penetration
+            return EventStatus.ReachedTermination(
+                self,
+                f"{self._name_of(self._robot_ids[i])} penetrated {self._describe(self._box_ids[j])} "
+                f"by {-depth:.4f} m at t = {context.get_time():.3f} s",
+            )
+        return EventStatus.Succeeded()
+
+    def _sample(self, state: list, q: list | None, time_s: float, signed_distance, robot_ids, box_ids):
+        """Updates ``state`` (the discrete state as a list) with the sample of joint
+        positions ``q`` (None: no pruning) at ``time_s``, measuring with
+        ``signed_distance(robot_id, box_id)``; returns the deepest penetration
+        ``(depth, robot index, box index)`` of the sample, or None."""
+        n, num_joints = len(self._box_ids), self._num_joints
+        m = len(robot_ids)
+        records, wake = state[:n], state[3 * n + 2 * num_joints:3 * n + 2 * num_joints + self._num_pairs]
+        pruning = q is not None
         if pruning:
-            q = self.robot_positions_input_port.Eval(context).tolist()
             q_previous = state[3 * n:3 * n + num_joints]
             travel = state[3 * n + num_joints:3 * n + 2 * num_joints]
             if q_previous[0] == q_previous[0]:  # not nan: there was a previous sample
@@ -205,8 +247,6 @@ class ShellMonitor(LeafSystem):
             # How far each robot geometry may have moved since the start, as a bound.
             moved = [sum(r * t for r, t in zip(radii, travel)) if bounded else math.inf
                      for radii, bounded in zip(self._radii, self._bounded)]
-        signed_distance = query_object.ComputeSignedDistancePairClosestPoints
-        robot_ids, box_ids = self._robot_ids, self._box_ids
         best = [math.inf] * n  # per box: the smallest distance measured now, and by whom
         best_index = [-1] * n
         measured = []
@@ -220,7 +260,6 @@ class ShellMonitor(LeafSystem):
                 best[j], best_index[j] = distance, i
         self.num_pair_queries += len(measured)
         penetration = None
-        time_s = context.get_time()
         for j in range(n):
             if best[j] < records[j]:
                 records[j] = state[j] = best[j]
@@ -234,15 +273,37 @@ class ShellMonitor(LeafSystem):
             for k, distance in measured:
                 j, i = divmod(k, m)
                 state[offset + k] = moved[i] + distance - max(records[j], 0.0)
-        new_state.get_mutable_discrete_state().get_mutable_vector(self._state_index).SetFromVector(state)
-        if self._stop_on_penetration and penetration is not None:
-            depth, i, j = penetration
-            return EventStatus.ReachedTermination(
-                self,
-                f"{self._name_of(self._robot_ids[i])} penetrated {self._describe(self._box_ids[j])} "
-                f"by {-depth:.4f} m at t = {context.get_time():.3f} s",
-            )
-        return EventStatus.Succeeded()
+        return penetration
+
+    # -- batches of logged samples ------------------------------------------------------------
+    def measure_log(self, root_context, t: np.ndarray, q: np.ndarray) -> None:
+        """Measures the samples of a joint-state log not measured yet.
+
+        ``t`` (m,) and ``q`` (m, J) are the log of the run so far, sampled every monitor
+        period from the start (the pipeline's joint-state logger). Only samples before the
+        Context's time count: a sample at that very time is the one an event-driven
+        monitor would take at the start of the next step. A monitor that samples itself
+        ignores this.
+        """
+        if self._scene is None:
+            return
+        context = self.GetMyMutableContextFromRoot(root_context)
+        if not self._prepared:
+            self._prepare(self.query_object_input_port.Eval(context))
+        state = context.get_discrete_state(self._state_index).value().tolist()
+        done = int(state[-1])
+        end = int(np.searchsorted(t, context.get_time(), side="left"))
+        if end <= done:
+            return
+        signed_distance = self._scene.scene_graph.get_query_output_port().Eval(
+            self._scene_graph_context).ComputeSignedDistancePairClosestPoints
+        plant, plant_context = self._scene.plant, self._scene_plant_context
+        robot_ids, box_ids = self._scene_robot_ids, self._scene_box_ids
+        for k in range(done, end):
+            plant.SetPositions(plant_context, q[k])
+            self._sample(state, q[k].tolist(), float(t[k]), signed_distance, robot_ids, box_ids)
+        state[-1] = float(end)
+        context.SetDiscreteState(self._state_index, np.array(state))
 
     def _prepare(self, query_object):
         """Names read once from SceneGraph (for geometries not named by the caller), and
