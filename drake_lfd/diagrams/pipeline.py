@@ -210,7 +210,7 @@ class Pipeline(Diagram):
         self.compiled = config.controller.method == COMPILED_METHOD
         if self.compiled:
             self.controller = builder.AddNamedSystem(
-                "differential_ik", JointTrajectoryController.for_law(self.law))
+                "differential_ik", JointTrajectoryController.for_law(self.law, lead_s=config.station.time_step))
         else:
             self.controller = builder.AddNamedSystem("differential_ik", DifferentialIKController(
                 plant=controller_plant, model=station.controller_model, frame_E=frame_E,
