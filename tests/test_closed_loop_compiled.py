@@ -1,0 +1,98 @@
+"""The compiled closed loop (the default controller) against the Python baseline, and the
+shell monitor measuring the joint log in batches against the per-sample monitor."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from drake_lfd.core.resources import scenarios_directory
+from drake_lfd.core.tasks import Box
+from drake_lfd.diagrams.closed_loop import ClosedLoopRunner, plan_through_joint_configurations, run_closed_loop
+from drake_lfd.diagrams.pipeline import build_pipeline, scheduled_plan_from_timed
+from drake_lfd.experiments.simulation import TrialRunner
+from drake_lfd.io.library import Library, library_features
+from drake_lfd.io.simulation_config import PipelineConfig
+from drake_lfd.io.task_files import load_task
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryController, joint_trajectory_of_plan
+
+Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -math.pi / 2, 0.0])
+Q_A = Q_HOME + np.array([0.25, 0.1, -0.15, 0.05, 0.1, 0.2])
+Q_B = Q_HOME + np.array([-0.05, 0.05, 0.1, 0.1, -0.1, -0.2])
+SHELL = Box(name="shell_below", centre=[-0.60, -0.25, 0.12], size=[0.3, 0.3, 0.1])
+
+
+def test_the_default_controller_is_the_compiled_one_without_python_systems():
+    pipeline = build_pipeline(plan=plan_through_joint_configurations([Q_HOME, Q_A]), with_table=False)
+    assert pipeline.config.controller.method == "compiled"
+    assert isinstance(pipeline.controller, JointTrajectoryController)
+    # Every system of the controller is one of Drake's C++ primitives.
+    names = {type(system).__name__ for system in pipeline.controller.GetSystems()}
+    assert names == {"TrajectorySource", "Multiplexer", "MatrixGain", "Saturation", "LinearSystem"}
+    # The monitor has no event of its own: it measures the joint log.
+    assert pipeline.monitor.measures_log
+
+
+def test_a_given_plan_becomes_a_joint_path_whose_kinematics_is_the_plan():
+    plan = plan_through_joint_configurations([Q_HOME, Q_A, Q_B])
+    pipeline = build_pipeline(plan=plan, with_table=False)
+    scheduled = scheduled_plan_from_timed(plan, 0.5)
+    trajectory = joint_trajectory_of_plan(scheduled, Q_HOME, pipeline.law)
+    kinematics = UR5eKinematics()
+
+    def gap(t):
+        X_path, X_plan = kinematics.X_WE(trajectory.value(t)[:, 0]), scheduled.X_WE_desired(t)
+        return np.linalg.norm(X_path.translation() - X_plan.translation())
+
+    # At its samples (every controller period) the path is the plan; between them the
+    # spline stays within a tenth of a millimetre.
+    assert max(gap(0.5 + 0.01 * k) for k in range(0, int(plan.duration / 0.01), 7)) < 1e-9
+    assert max(gap(t) for t in np.linspace(0.5, 0.5 + plan.duration, 97)) < 1e-4
+    np.testing.assert_allclose(trajectory.value(0.0)[:, 0], Q_HOME)  # held before the start
+
+
+@pytest.mark.slow
+def test_compiled_tracking_is_at_least_as_good_as_the_python_controller():
+    plan = plan_through_joint_configurations([Q_HOME, Q_A, Q_B])
+    results = {method: run_closed_loop(plan, q_initial=Q_HOME, safety_shells=[SHELL], controller=method)
+               for method in ("compiled", "drake")}
+    worst = {method: max(e.position_m for e in result.critical_errors) for method, result in results.items()}
+    assert worst["compiled"] <= max(worst["drake"], 1e-4)
+    assert results["compiled"].max_joint_speed_fraction <= 1.0
+    # The same motion: the logs agree to a millimetre-sized joint difference.
+    assert np.max(np.abs(results["compiled"].q - results["drake"].q)) < 5e-3
+
+
+def _records(task, features, trials, **monitor):
+    config = dataclasses.replace(task.simulation, monitor=dataclasses.replace(task.simulation.monitor, **monitor))
+    runner = TrialRunner(task, features, config=config)
+    assert runner._runner.pipeline.monitor.measures_log == monitor["from_log"]
+    records = []
+    for i in range(trials):
+        outcome = runner.run(trial=i + 1, seed=i)
+        records.append(None if outcome.run is None else outcome.run.clearances)
+    return records
+
+
+@pytest.mark.slow
+def test_the_batched_monitor_keeps_every_record_of_the_per_sample_monitor():
+    task = load_task(scenarios_directory() / "transferring.yaml")
+    features = library_features(Library.open("paper5"))
+    per_sample = _records(task, features, 3, from_log=False)
+    batched = _records(task, features, 3, from_log=True)
+    assert all(r is not None for r in per_sample)
+    # The same minimum, geometry and time of every box, to the bit.
+    assert batched == per_sample
+
+
+@pytest.mark.slow
+def test_runs_with_a_penetration_stop_keep_sampling_each_period():
+    plan = plan_through_joint_configurations([Q_HOME, Q_A])
+    config = PipelineConfig()
+    config.monitor.stop_on_penetration = True
+    pipeline = build_pipeline(plan=plan, safety_shells=[SHELL], with_table=False, config=config)
+    assert not pipeline.monitor.measures_log
+    _, result = ClosedLoopRunner(pipeline).run(q_initial=Q_HOME)
+    assert not result.stopped_early and math.isfinite(result.min_shell_distance_m)
