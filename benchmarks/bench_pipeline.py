@@ -15,6 +15,9 @@ trial did, so the machine's load falls on both alike. Prints:
   (target: at least 0.3);
 - each part's wall per trial: bare station, closed loop, placing the arm, planning,
   judging and the rest.
+
+The ratios are printed by wall time (the measure) and by the process's CPU time, which
+other processes on a shared machine do not inflate.
 """
 
 from __future__ import annotations
@@ -39,9 +42,9 @@ from drake_lfd.robot.scene import table_under_robot
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -np.pi / 2, 0.0])
 
 
-def bare_station_wall_s(task, duration_s: float) -> float:
-    """Wall time of the bare station (the task's scene, the closed loop's plant step and
-    drive) holding a position for ``duration_s`` simulated seconds."""
+def bare_station_times_s(task, duration_s: float) -> tuple[float, float]:
+    """Wall and CPU time of the bare station (the task's scene, the closed loop's plant
+    step and drive) holding a position for ``duration_s`` simulated seconds."""
     config = PipelineConfig().checked().station
     station = build_station(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, obstacles=task.obstacles,
                             safety_shells=task.safety_shells, table=table_under_robot(task.X_WB), config=config)
@@ -50,9 +53,9 @@ def bare_station_wall_s(task, duration_s: float) -> float:
     station.GetInputPort("ur5e.position_command").FixValue(context, Q_HOME)
     simulator = Simulator(station, context)
     simulator.Initialize()
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     simulator.AdvanceTo(duration_s)
-    return time.perf_counter() - start
+    return time.perf_counter() - start, time.process_time() - cpu_start
 
 
 def main() -> None:
@@ -77,51 +80,50 @@ def main() -> None:
     if args.monitor_period is not None:
         config = dataclasses.replace(config, monitor=dataclasses.replace(config.monitor, period=args.monitor_period))
     runner = TrialRunner(task, features, config=config)
-    walls = {"planning": 0.0, "judging": 0.0}
+    walls = {"planning": [0.0, 0.0], "judging": [0.0, 0.0]}  # [wall, CPU]
+
+    def timed(part, function):
+        def wrapper(*a, **k):
+            start, cpu_start = time.perf_counter(), time.process_time()
+            try:
+                return function(*a, **k)
+            finally:
+                walls[part][0] += time.perf_counter() - start
+                walls[part][1] += time.process_time() - cpu_start
+        return wrapper
+
     loop_runner = runner._runner
-    plan = loop_runner.plan
-
-    def timed_plan(*a, **k):
-        start = time.perf_counter()
-        try:
-            return plan(*a, **k)
-        finally:
-            walls["planning"] += time.perf_counter() - start
-
-    def timed_judge(*a, **k):
-        start = time.perf_counter()
-        try:
-            return judge_run(*a, **k)
-        finally:
-            walls["judging"] += time.perf_counter() - start
-
-    loop_runner.plan = timed_plan
-    simulation.judge_run = timed_judge
-    outcomes, wall, bare_wall = [], 0.0, 0.0
+    loop_runner.plan = timed("planning", loop_runner.plan)
+    simulation.judge_run = timed("judging", judge_run)
+    outcomes = []
+    wall, cpu, bare_wall, bare_cpu = 0.0, 0.0, 0.0, 0.0
     for i in range(args.trials):
-        start = time.perf_counter()
+        start, cpu_start = time.perf_counter(), time.process_time()
         outcomes.append(runner.run(trial=i + 1, seed=i))
         wall += time.perf_counter() - start
+        cpu += time.process_time() - cpu_start
         if outcomes[-1].run is not None:
-            bare_wall += bare_station_wall_s(task, outcomes[-1].run.sim_time_s)
+            w, c = bare_station_times_s(task, outcomes[-1].run.sim_time_s)
+            bare_wall, bare_cpu = bare_wall + w, bare_cpu + c
     runs = [o.run for o in outcomes if o.run is not None]
+    n, m = len(outcomes), len(runs)
     sim = sum(r.sim_time_s for r in runs)
-    bare = sim / bare_wall
-    loop_wall = sum(r.wall_time_s for r in runs)
-    setup_wall = sum(r.setup_wall_time_s for r in runs)
-    end_to_end = sim / wall
-    n = len(outcomes)
+    loop = [sum(r.wall_time_s for r in runs), sum(r.cpu_time_s for r in runs)]
+    setup = sum(r.setup_wall_time_s for r in runs)
     print(f"{args.trials} transferring trials ({sum(o.success for o in outcomes)}/{n} succeeded), "
-          f"{sim:.1f} s simulated, controller {runner._runner.pipeline.config.controller.method}, one process")
-    print(f"  bare station (plant + drive + scene, 5 ms step, held command): {bare:.1f}x real time")
-    print(f"  closed loop alone: {sim / loop_wall:.1f}x real time = {sim / loop_wall / bare:.2f} of the bare station "
-          f"(target >= 0.6)")
-    print(f"  end to end (planning, placing the arm, closed loop, judging): {end_to_end:.1f}x real time = "
-          f"{end_to_end / bare:.2f} of the bare station (target >= 0.3)")
-    other = wall - loop_wall - setup_wall - walls["planning"] - walls["judging"]
-    print(f"  wall per trial: bare station {bare_wall / len(runs):.3f} s | closed loop {loop_wall / len(runs):.3f} s, "
-          f"placing the arm {setup_wall / len(runs):.3f} s, planning {walls['planning'] / n:.3f} s, "
-          f"judging {walls['judging'] / n:.3f} s, the rest {other / n:.3f} s")
+          f"{sim:.1f} s simulated, controller {loop_runner.pipeline.config.controller.method}, one process")
+    for label, index, bare_time, total in (("wall", 0, bare_wall, wall), ("CPU", 1, bare_cpu, cpu)):
+        bare = sim / bare_time
+        print(f"  by {label} time: bare station (plant + drive + scene, 5 ms step, held command) {bare:.1f}x real time; "
+              f"closed loop alone {sim / loop[index]:.1f}x = {sim / loop[index] / bare:.2f} of it (target >= 0.6); "
+              f"end to end {sim / total:.1f}x = {sim / total / bare:.2f} of it (target >= 0.3)")
+    other = wall - loop[0] - setup - walls["planning"][0] - walls["judging"][0]
+    print(f"  wall per trial: bare station {bare_wall / m:.3f} s | closed loop {loop[0] / m:.3f} s, "
+          f"placing the arm {setup / m:.3f} s, planning {walls['planning'][0] / n:.3f} s, "
+          f"judging {walls['judging'][0] / n:.3f} s, the rest {other / n:.3f} s")
+    print(f"  CPU per trial: bare station {bare_cpu / m:.3f} s | closed loop {loop[1] / m:.3f} s, "
+          f"planning {walls['planning'][1] / n:.3f} s, judging {walls['judging'][1] / n:.3f} s, "
+          f"trial in all {cpu / n:.3f} s")
 
 
 if __name__ == "__main__":

@@ -1,8 +1,18 @@
 """The whole pipeline as one Diagram: library -> planner -> trajectory -> diff IK -> UR5e.
 
-:class:`Pipeline` wires the stages in pipeline order, one ``Connect`` per arrow::
+:class:`Pipeline` wires the stages in pipeline order, one ``Connect`` per arrow. With the
+default, compiled controller (``controller.method: compiled``)::
 
     FeatureLibrarySystem --library--> PlannerSystem <--task-- (exported input "task")
+    PlannerSystem --plan--> (exported output "plan"; the runner sets the plan's joint path
+                             on the controller's TrajectorySource)
+    JointTrajectoryController --q_command--> Station (ur5e.position_command)
+    Station --ur5e.position_measured--> JointTrajectoryController
+    Station --ur5e.state--> joint logger; ShellMonitor measures the logged samples
+
+With the Python task-space controller (``drake`` or ``pseudo_inverse``, the paper's
+baseline)::
+
     PlannerSystem --plan--> PlanTrajectorySource
     PlanTrajectorySource --X_WE_desired, V_WE_desired--> DifferentialIKController
     DifferentialIKController --q_command--> Station (ur5e.position_command)
@@ -137,7 +147,13 @@ class Pipeline(Diagram):
     Attributes
     ----------
     station, library, planner, source, controller, monitor, logger
-        The subsystems (``library`` and ``planner`` are None with a given ``plan``).
+        The subsystems (``library`` and ``planner`` are None with a given ``plan``,
+        ``source`` with the compiled controller).
+    law : DifferentialIKLaw
+        The controller's law on the controller plant (the compiled controller's limits;
+        following a plan that has no joint path).
+    compiled : bool
+        Whether the controller is the compiled one.
     config : PipelineConfig
     workcell : Workcell
     table : Box or None
@@ -201,7 +217,6 @@ class Pipeline(Diagram):
             constant = builder.AddNamedSystem("given_plan", ConstantValueSource(
                 AbstractValue.Make(scheduled_plan_from_timed(plan, config.settle_s))))
             plan_port = constant.get_output_port()
-        self.source = builder.AddNamedSystem("plan_trajectory_source", PlanTrajectorySource())
         controller_plant = station.controller_plant
         frame_E = controller_plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)
         #: The controller's law on the controller plant (the compiled controller's limits,
@@ -209,9 +224,14 @@ class Pipeline(Diagram):
         self.law = law_for_plant(controller_plant, station.controller_model, frame_E, config.controller)
         self.compiled = config.controller.method == COMPILED_METHOD
         if self.compiled:
+            # The plan reaches the compiled controller's own TrajectorySource as a joint
+            # path, set by the runner; no Python source is evaluated (or stepped) at run time.
+            self.source = None
             self.controller = builder.AddNamedSystem(
-                "differential_ik", JointTrajectoryController.for_law(self.law, lead_s=config.station.time_step))
+                "differential_ik", JointTrajectoryController.for_law(
+                    self.law, lead_s=config.station.time_step if station.plant.has_sampled_output_ports() else 0.0))
         else:
+            self.source = builder.AddNamedSystem("plan_trajectory_source", PlanTrajectorySource())
             self.controller = builder.AddNamedSystem("differential_ik", DifferentialIKController(
                 plant=controller_plant, model=station.controller_model, frame_E=frame_E,
                 time_step=config.controller.time_step, method=config.controller.method,
@@ -232,8 +252,8 @@ class Pipeline(Diagram):
             builder.ExportInput(self.planner.task_input_port, "task")
             if accept_demonstrations:
                 builder.ExportInput(self.library.demonstration_input_port, "demonstration")
-        builder.Connect(plan_port, self.source.plan_input_port)
         if not self.compiled:
+            builder.Connect(plan_port, self.source.plan_input_port)
             builder.Connect(self.source.X_WE_desired_output_port, self.controller.X_WE_desired_input_port)
             builder.Connect(self.source.V_WE_desired_output_port, self.controller.V_WE_desired_input_port)
         builder.Connect(self.controller.q_command_output_port, station.GetInputPort(station.port_name("position_command")))

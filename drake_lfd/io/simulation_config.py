@@ -87,6 +87,10 @@ class StationConfig:
         Meshcat frame period, s (when a Meshcat is given).
     model_name : str
         Robot model instance name and prefix of the exported ports.
+    sampled_output_ports : bool
+        Drake's sampled output ports for the plant (its step an unrestricted update);
+        off: the step is a discrete update and the outputs follow the current state
+        (``station.py``).
     """
 
     time_step: float = STATION_TIME_STEP_S
@@ -94,6 +98,7 @@ class StationConfig:
     drive: DriveConfig = dataclasses.field(default_factory=DriveConfig)
     visualizer_publish_period: float = 1.0 / 32.0
     model_name: str = "ur5e"
+    sampled_output_ports: bool = False
 
 
 @dataclasses.dataclass
