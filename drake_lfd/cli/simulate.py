@@ -22,7 +22,10 @@ from drake_lfd.cli.plan import add_planning_arguments, load_policy_for
 from drake_lfd.cli.sweep import add_worker_arguments, workers_of
 
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "CONTROLLER_CHOICES"]
+
+# ``--controller`` values: the controller methods of a task's ``simulation.controller``.
+CONTROLLER_CHOICES = {"compiled": "compiled", "drake": "drake", "paper": "pseudo_inverse"}
 
 
 def add_parser(subparsers) -> None:
@@ -50,6 +53,11 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--figures", metavar="DIR",
                         help="write figures of the first trial that ran into DIR (created if missing): "
                              "SE(3) plan, joints, distance to shells")
+    parser.add_argument("--controller", choices=sorted(CONTROLLER_CHOICES), default=None,
+                        help="compiled: the plan's checked joint path tracked by Drake's C++ systems (the default); "
+                             "drake: the Python task-space controller with Drake's differential IK; paper: the "
+                             "Python controller with the paper's pseudo-inverse (Eq. 35-38) (default: the task's, "
+                             "compiled unless its simulation block says otherwise)")
     add_worker_arguments(parser)
     parser.set_defaults(func=run)
 
@@ -72,6 +80,7 @@ def run(args) -> int:
             raise InputError("shows the trials one after another in one viewer: it needs --workers 1",
                              field="--meshcat")
     workers = 1 if args.meshcat else workers_of(args, args.trials)
+    controller = None if args.controller is None else CONTROLLER_CHOICES[args.controller]
     prepare_output(args.json, "--json")
     prepare_output(args.html, "--html")
     prepare_output(args.figures, "--figures", folder=True)
@@ -101,13 +110,13 @@ def run(args) -> int:
             outcomes, wall = run_trials(
                 task, library_features(library), trials=args.trials, seed=args.seed, planner=args.planner,
                 policy=policy, record_html=args.html, progress=progress, meshcat=meshcat, cost=args.cost,
-                refine=args.refine,
+                refine=args.refine, controller=controller,
             )
         else:  # the same trials on worker processes or a cluster, delivered in trial order
             from drake_lfd.experiments.parallel_trials import run_trials_on_workers, runner_spec
 
             runner = runner_spec(args.task, library, policy_file=args.policy if args.planner == "q" else None,
-                                 planner=args.planner, cost=args.cost, refine=args.refine)
+                                 planner=args.planner, cost=args.cost, refine=args.refine, controller=controller)
             outcomes, wall = run_trials_on_workers(
                 runner, trials=args.trials, seed=args.seed, record_html=args.html, progress=progress,
                 workers=workers, scheduler=args.scheduler,

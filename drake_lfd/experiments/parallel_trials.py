@@ -128,6 +128,7 @@ class RunnerSpec:
     planner: str = "exact"
     cost: str = "paper"
     refine: bool = False
+    controller: str | None = None
 
     def runner_options(self) -> dict:
         """The TrialRunner keyword options: every field but what says what to load."""

@@ -83,12 +83,14 @@ class TrialRunner:
     def __init__(self, task: Task, features: Mapping[str, Feature], *, planner: str = "exact",
                  policy: QPolicy | None = None, with_table: bool = True, config: PipelineConfig | None = None,
                  joint_check: bool = True, meshcat: Meshcat | None = None, cost: str = "paper",
-                 refine: bool = False):
+                 refine: bool = False, controller: str | None = None):
         check_problem_size(task, features, cost=cost)  # a problem too large is refused before the pipeline is built
         self.task = task
+        config = config if config is not None else task.simulation
+        if controller is not None:  # the controller method, over the task's (``simulate --controller``)
+            config = dataclasses.replace(config, controller=dataclasses.replace(config.controller, method=controller))
         self._options = dict(features=features, planner=planner, policy=policy, with_table=with_table,
-                             joint_check=joint_check, cost=cost, refine=refine,
-                             config=config if config is not None else task.simulation)
+                             joint_check=joint_check, cost=cost, refine=refine, config=config)
         self._recording_runner = None
         if meshcat is not None:
             # Live: every trial runs on the pipeline that draws into ``meshcat``.
@@ -167,16 +169,18 @@ def run_trials(
     meshcat: Meshcat | None = None,
     cost: str = "paper",
     refine: bool = False,
+    controller: str | None = None,
 ) -> tuple[list[TrialOutcome], float]:
     """Runs ``trials`` trials (seeds ``seed``, ``seed + 1``, ...) on one pipeline Diagram;
     the first one that plans is recorded to ``record_html``; with ``meshcat``, every trial
     is shown there as it runs; ``cost`` is the planner's action cost (``"paper"``: Eq. 31;
     ``"fidelity"``: with the shape-fidelity terms); ``refine`` refines each plan by
-    trajectory optimization (``planning/refinement.py``). Returns the outcomes and the
+    trajectory optimization (``planning/refinement.py``); ``controller`` overrides the
+    task's controller method (``"compiled"``, ``"drake"``, ``"pseudo_inverse"``). Returns the outcomes and the
     wall time (planning included)."""
     start = time.perf_counter()
     runner = TrialRunner(task, features, planner=planner, policy=policy, meshcat=meshcat, cost=cost,
-                         refine=refine)
+                         refine=refine, controller=controller)
     outcomes = []
     recorded = record_html is None
     for i in range(trials):
