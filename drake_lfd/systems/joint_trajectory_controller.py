@@ -108,17 +108,19 @@ def _follow(scheduled: ScheduledPlan, q_initial: np.ndarray, law: DifferentialIK
 
 
 def _path_matches_plan(scheduled: ScheduledPlan, q_initial: np.ndarray, law: DifferentialIKLaw) -> bool:
+    """Whether the plan's joint path starts at ``q_initial`` and meets each critical
+    configuration, at the sample nearest its time, within :data:`JOINT_PATH_AGREEMENT_M`
+    plus half a period at 1 m/s (a path spliced from another plan does not)."""
     path = scheduled.result.joint_path
     if path is None or len(path.q) < 2 or not np.array_equal(path.q[0], q_initial):
         return False
     timed = scheduled.timed
+    tolerance = JOINT_PATH_AGREEMENT_M + 0.5 * law.time_step * 1.0
     for i in timed.critical_indices:
         k = int(round(timed.times[i] / law.time_step))
         if k >= len(path.q):
             return False
-        # Due between two samples: the nearer one is within half a period of motion.
         X_path, X_plan = law.X_WE(path.q[k]), scheduled.X_WE_desired(scheduled.start_time_s + timed.times[i])
-        tolerance = JOINT_PATH_AGREEMENT_M + 0.5 * law.time_step * 1.0  # 1 m/s tool speed at most
         if np.linalg.norm(X_path.translation() - X_plan.translation()) > tolerance:
             return False
     return True
