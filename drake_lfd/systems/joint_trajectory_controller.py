@@ -11,7 +11,7 @@ with no Python in the 100 Hz loop: a subsystem Diagram of pydrake primitives::
         -> LinearSystem (discrete, period dt: the command integrator) -> Saturation (position limits)
         -> q_command
 
-with the same law as the Python controller (``differential_ik.py``), written in joint space:
+with the same law as the Python controller (``differential_ik.py``), written in joint space::
 
     v_k = qdot_d + K (q_d - q_measured),    |v_k,j| <= fraction * vmax_j
     q_command,k = q_command,k-1 + dt v_k     (Eq. 37-38's Euler step)
