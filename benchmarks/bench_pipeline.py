@@ -14,7 +14,9 @@ trial did, so the machine's load falls on both alike. Prints:
 - end to end (planning, placing the arm, the closed loop, judging), and its ratio
   (target: at least 0.3);
 - each part's wall per trial: bare station, closed loop, placing the arm, planning,
-  judging and the rest.
+  judging and the rest;
+- for scale, the station driven along each trial's joint path by a TrajectorySource (no
+  controller, no monitor): how much of the closed loop's cost is the moving arm's plant.
 
 The ratios are printed by wall time (the measure) and by the process's CPU time, which
 other processes on a shared machine do not inflate.
@@ -28,6 +30,8 @@ import time
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
 
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.experiments import simulation
@@ -38,20 +42,32 @@ from drake_lfd.experiments.simulation import TrialRunner
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
 from drake_lfd.robot.scene import table_under_robot
+from drake_lfd.systems.joint_trajectory_controller import joint_spline
 
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -np.pi / 2, 0.0])
 
 
-def bare_station_times_s(task, duration_s: float) -> tuple[float, float]:
+def bare_station_times_s(task, duration_s: float, outcome=None) -> tuple[float, float]:
     """Wall and CPU time of the bare station (the task's scene, the closed loop's plant
-    step and drive) holding a position for ``duration_s`` simulated seconds."""
+    step and drive) holding a position for ``duration_s`` simulated seconds; with a trial's
+    ``outcome``, driven along its plan's joint path instead (a TrajectorySource on the
+    position command: the moving arm's plant cost, without controller or monitor)."""
     config = PipelineConfig().checked().station
-    station = build_station(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, obstacles=task.obstacles,
-                            safety_shells=task.safety_shells, table=table_under_robot(task.X_WB), config=config)
-    context = station.CreateDefaultContext()
-    station.set_initial_positions(context, Q_HOME)
-    station.GetInputPort("ur5e.position_command").FixValue(context, Q_HOME)
-    simulator = Simulator(station, context)
+    builder = DiagramBuilder()
+    station = builder.AddSystem(build_station(
+        X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, obstacles=task.obstacles, safety_shells=task.safety_shells,
+        table=table_under_robot(task.X_WB), config=config))
+    if outcome is None:
+        q0, command = Q_HOME, ConstantVectorSource(Q_HOME)
+    else:
+        path = outcome.plan.joint_path
+        q0 = path.q[0]
+        command = TrajectorySource(joint_spline(outcome.run.plan_start_time_s + path.t, path.q))
+    builder.Connect(builder.AddSystem(command).get_output_port(), station.GetInputPort("ur5e.position_command"))
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    station.set_initial_positions(context, q0)
+    simulator = Simulator(diagram, context)
     simulator.Initialize()
     start, cpu_start = time.perf_counter(), time.process_time()
     simulator.AdvanceTo(duration_s)
@@ -96,7 +112,7 @@ def main() -> None:
     loop_runner.plan = timed("planning", loop_runner.plan)
     simulation.judge_run = timed("judging", judge_run)
     outcomes = []
-    wall, cpu, bare_wall, bare_cpu = 0.0, 0.0, 0.0, 0.0
+    wall, cpu, bare_wall, bare_cpu, moving_wall, moving_cpu = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     for i in range(args.trials):
         start, cpu_start = time.perf_counter(), time.process_time()
         outcomes.append(runner.run(trial=i + 1, seed=i))
@@ -105,6 +121,8 @@ def main() -> None:
         if outcomes[-1].run is not None:
             w, c = bare_station_times_s(task, outcomes[-1].run.sim_time_s)
             bare_wall, bare_cpu = bare_wall + w, bare_cpu + c
+            w, c = bare_station_times_s(task, outcomes[-1].run.sim_time_s, outcomes[-1])
+            moving_wall, moving_cpu = moving_wall + w, moving_cpu + c
     runs = [o.run for o in outcomes if o.run is not None]
     n, m = len(outcomes), len(runs)
     sim = sum(r.sim_time_s for r in runs)
@@ -112,11 +130,14 @@ def main() -> None:
     setup = sum(r.setup_wall_time_s for r in runs)
     print(f"{args.trials} transferring trials ({sum(o.success for o in outcomes)}/{n} succeeded), "
           f"{sim:.1f} s simulated, controller {loop_runner.pipeline.config.controller.method}, one process")
-    for label, index, bare_time, total in (("wall", 0, bare_wall, wall), ("CPU", 1, bare_cpu, cpu)):
+    for label, index, bare_time, moving_time, total in (("wall", 0, bare_wall, moving_wall, wall),
+                                                         ("CPU", 1, bare_cpu, moving_cpu, cpu)):
         bare = sim / bare_time
         print(f"  by {label} time: bare station (plant + drive + scene, 5 ms step, held command) {bare:.1f}x real time; "
               f"closed loop alone {sim / loop[index]:.1f}x = {sim / loop[index] / bare:.2f} of it (target >= 0.6); "
-              f"end to end {sim / total:.1f}x = {sim / total / bare:.2f} of it (target >= 0.3)")
+              f"end to end {sim / total:.1f}x = {sim / total / bare:.2f} of it (target >= 0.3); "
+              f"[the station driven along the plans' joint paths, no controller: {sim / moving_time:.1f}x = "
+              f"{sim / moving_time / bare:.2f}]")
     other = wall - loop[0] - setup - walls["planning"][0] - walls["judging"][0]
     print(f"  wall per trial: bare station {bare_wall / m:.3f} s | closed loop {loop[0] / m:.3f} s, "
           f"placing the arm {setup / m:.3f} s, planning {walls['planning'][0] / n:.3f} s, "
