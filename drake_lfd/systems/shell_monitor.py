@@ -14,6 +14,16 @@ samples the same states as a periodic publisher such as the joint-state logger (
 negative distance is a penetration; optionally the monitor then ends the simulation
 (``EventStatus.ReachedTermination``: ``Simulator.AdvanceTo`` returns early, cleanly).
 
+Because those are the logger's samples, the pipeline's monitor measures them from the
+log (given a kinematic scene of the same work cell: ``measure_log``, called by the
+closed-loop runner when each critical configuration is due and at the end of the run),
+with no event of its own: a Python event every 10 ms and its pairs loop cost about as
+much as the plant's step (a run's step 347 us against 191 us with the log measured, on a
+loaded machine). The records are the same, to the bit (``tests/test_closed_loop_compiled.py``
+compares them on the transferring task; 12 pick-and-place tasks, filling and pouring and
+assembling agreed too). With ``stop_on_penetration`` the monitor samples itself, to end
+the run at the penetration's sample.
+
 Not for: registering the boxes (``scene.py``) or judging a run (``closed_loop.py``).
 """
 
