@@ -29,6 +29,7 @@ from drake_lfd.core.dual_quaternion import (
 from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.executable import InfeasibleSegment, search_executable
 from drake_lfd.planning.problem_size import check_problem_size
+from drake_lfd.planning.refusals import blocked_configurations, distinct_reasons
 from drake_lfd.core.features import Feature
 from drake_lfd.core.fidelity import FidelityWeights, check_cost_mode
 from drake_lfd.core.mapping import map_segment
@@ -479,9 +480,10 @@ def plan_task(
         steps = solve(problem)
         composed = None if steps is None else compose(steps)
     else:
-        search = search_executable(problem, solve, compose, checker, names, alternatives=alternatives)
+        search = search_executable(problem, solve, compose, checker, names, alternatives=alternatives,
+                                   refusal=lambda problem: blocked_configurations(problem, checker))
         steps, composed, joint_path, blocked, rounds = (
-            search.steps, search.composed, search.joint_path, search.blocked, search.rounds)
+            search.steps, search.composed, search.joint_path, distinct_reasons(search.blocked), search.rounds)
     greedy_completed, fallback = q_outcome.get("greedy_completed"), q_outcome.get("fallback")
     if steps is None:
         if blocked:
