@@ -124,6 +124,9 @@ def run(args) -> int:
               f"{len(result.timed.times)} poses over {result.timed.duration:.1f} s, "
               f"largest correction {result.max_correction_position_m * 1e3:.1f} mm / "
               f"{np.degrees(result.max_correction_rotation_rad):.1f} deg")
+        for s in result.composition:
+            print(f"  {s.demo} (con_{s.con_from}->con_{s.con_to}): largest correction "
+                  f"{s.max_correction_position_m * 1e3:.1f} mm / {np.degrees(s.max_correction_rotation_rad):.1f} deg")
         if result.fallback:
             print(f"note: the greedy Q-walk dead-ended; the {result.fallback} planner completed the plan")
         if result.refinement is not None:

@@ -34,7 +34,9 @@ def critical_configurations_json(result: PlanResult) -> list[dict]:
 
 def composition_json(result: PlanResult) -> list[dict]:
     return [
-        {"demo": s.demo, "from": s.con_from, "to": s.con_to, "cost": float(s.cost)}
+        {"demo": s.demo, "from": s.con_from, "to": s.con_to, "cost": float(s.cost),
+         "max_correction": {"position_m": float(s.max_correction_position_m),
+                            "rotation_rad": float(s.max_correction_rotation_rad)}}
         for s in result.composition
     ]
 
@@ -116,7 +118,8 @@ def joint_trajectory_json(result: PlanResult) -> dict:
 def infeasible_json(result: PlanResult) -> list[dict]:
     """The segments found blocked for the robot: for ``no_executable_plan`` every
     composition's; for a plan, those the search set aside on the way."""
-    return [{"from": s.con_from, "to": s.con_to, "reason": s.reason, "detail": s.detail, "demo": s.demo}
+    return [{"from": s.con_from, "to": s.con_to, "reason": s.reason, "detail": s.detail, "demo": s.demo,
+             "blocked_alternatives": int(s.blocked_alternatives)}
             for s in result.infeasible]
 
 
