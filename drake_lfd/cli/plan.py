@@ -149,7 +149,7 @@ def run(args) -> int:
             path = Path(args.request_script)
             if len(result.uncovered) > 1:
                 path = path.with_name(f"{path.stem}_con_{u.con_from}_con_{u.con_to}{path.suffix or '.yaml'}")
-            atomic_write_bytes(path, request_guidance_yaml(trial, u).encode())
+            atomic_write_bytes(path, request_guidance_yaml(trial, u, path=path).encode())
             print(f"  guidance script for drake-lfd record (edit it to show how): {path}")
     else:
         print("  (--request-script SCRIPT.yaml writes a guidance script of it for drake-lfd record)")
