@@ -28,7 +28,7 @@ from collections.abc import Sequence
 import numpy as np
 from pydrake.math import RigidTransform
 
-from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
+from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion, translation_from_dual_quaternion
 from drake_lfd.planning.composition import CompositionProblem
 from drake_lfd.planning.executable import InfeasibleSegment
 from drake_lfd.robot.initial_ik import UnreachableConfigurationError, initial_configuration_candidates
@@ -62,26 +62,27 @@ def branch_violation(checker: JointPathChecker, q: np.ndarray, distance_m: float
     return None
 
 
-def _configuration_problems(checker: JointPathChecker, poses: np.ndarray, con: int) -> list | None:
-    """The violations ``(reason, kind, detail)`` of every inverse-kinematics branch of
-    every candidate pose (g, 8) of critical configuration ``con`` (1-based), or None as
-    soon as one branch keeps every margin. A candidate no branch reaches adds
+def _configuration_problems(checker: JointPathChecker, poses: np.ndarray, con: int) -> tuple[list, list]:
+    """The violations ``(reason, kind, detail)`` of the inverse-kinematics branches of
+    every candidate pose (g, 8) of critical configuration ``con`` (1-based), and the
+    branches (q, shape (6,)) that keep every margin. A candidate no branch reaches adds
     ``("reach", ...)``."""
-    problems = []
+    problems, good = [], []
     for D in poses:
         X_WE = RigidTransform(matrices_from_dual_quaternion(np.asarray(D)[None])[0])
         try:
             branches = initial_configuration_candidates(X_WE, X_WB=checker.X_WB, scene=checker.scene, con=con)
-        except UnreachableConfigurationError as error:
-            problems.append(("reach", "reach", str(error).rstrip(".")))
+        except UnreachableConfigurationError:
+            problems.append(("reach", "reach", "no inverse-kinematics solution reaches it"))
             continue
         for branch in branches:
             violation = branch_violation(checker, branch.q, branch.min_distance_m, branch.closest_robot_geometry,
                                          branch.closest_box)
             if violation is None:
-                return None
-            problems.append(violation)
-    return problems
+                good.append(branch.q)
+            else:
+                problems.append(violation)
+    return problems, good
 
 
 def _actions_through(problem: CompositionProblem, con: int) -> int:
@@ -98,10 +99,12 @@ def blocked_configurations(problem: CompositionProblem, checker: JointPathChecke
     the same margin, the value closest to passing."""
     segments = []
     n = problem.num_cons
+    good_branches = []
     for index, poses in enumerate(problem.candidate_poses):
         number = index + 1
-        problems = _configuration_problems(checker, poses, number)
-        if problems is None:
+        problems, good = _configuration_problems(checker, poses, number)
+        good_branches.append(good)
+        if good:
             continue
         by_kind: dict[str, list] = {}
         for reason, kind, detail in problems:
@@ -111,14 +114,106 @@ def blocked_configurations(problem: CompositionProblem, checker: JointPathChecke
             reason, detail = min(found, key=lambda item: _closeness(item[1]))
             parts.append((len(found), reason, detail))
         parts.sort(key=lambda part: -part[0])
-        branches = len(problems)
-        detail = "; ".join(f"{detail} on {count} of {branches} branch{'es' if branches > 1 else ''}"
-                           for count, _reason, detail in parts)
+        p = np.round(translation_from_dual_quaternion(poses[0]), 3).tolist()
+        if [reason for _count, reason, _detail in parts] == ["reach"]:
+            detail = f"at con_{number} (p = {p} m): out of the UR5e's reach, no inverse-kinematics solution"
+        else:
+            branches = len(problems)
+            detail = f"at con_{number} (p = {p} m), on every inverse-kinematics branch: " + "; ".join(
+                f"{detail} on {count} of {branches}" for count, _reason, detail in parts)
         segments.append(InfeasibleSegment(
-            max(number - 1, 1), min(max(number, 2), n), parts[0][1],
-            f"at con_{number}, on every inverse-kinematics branch: {detail}",
+            max(number - 1, 1), min(max(number, 2), n), parts[0][1], detail,
             blocked_alternatives=max(_actions_through(problem, index), 1)))
+    if not segments:
+        segments = _blocked_pan_sweeps(problem, checker, good_branches)
     return segments
+
+
+# The shoulder-pan sweep is checked on a grid of this many angles per turn (1 deg).
+PAN_GRID = 360
+
+
+def _pan_only_rows(checker: JointPathChecker) -> np.ndarray:
+    """Indices of the robot geometries whose distances to the boxes depend on
+    shoulder_pan alone (the shoulder link, and shapes of the upper arm round about the
+    shoulder_lift axis), found by moving every other joint at two pans."""
+    scene, rng = checker.scene, np.random.default_rng(0)
+    lower, upper = checker.law.position_lower, checker.law.position_upper
+    same = None
+    for pan in (0.3, 2.1):
+        samples = rng.uniform(np.maximum(lower, -np.pi), np.minimum(upper, np.pi), size=(4, 6))
+        samples[:, 0] = pan
+        distances = np.array([scene.signed_distances(q) for q in samples])  # (4, geometries, boxes)
+        unchanged = np.all(np.abs(distances - distances[0]) < 1e-5, axis=(0, 2))  # FCL: ~1e-6 noise
+        same = unchanged if same is None else same & unchanged
+    return np.flatnonzero(same)
+
+
+def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
+                        good_branches: list[list[np.ndarray]]) -> list[InfeasibleSegment]:
+    """Spans con_i -> con_(i+1) that every way of turning shoulder_pan blocks.
+
+    Between consecutive critical configurations the arm moves continuously, so
+    shoulder_pan turns from its value on a branch of con_i to its value on a branch of
+    con_(i+1), one way round or the other (or further). A shape whose distances depend on
+    the pan alone has, at each pan, one clearance; when on both ways round, for every pair
+    of branches, some pan brings such a shape within the clearance, every composition is
+    blocked on that span (the per-configuration check already kept only branches that
+    keep every margin)."""
+    scene = checker.scene
+    if not scene.geometry.keep_out_geometry_ids or any(not good for good in good_branches):
+        return []
+    rows = _pan_only_rows(checker)
+    if not len(rows):
+        return []
+    pans = np.linspace(0.0, 2 * np.pi, PAN_GRID, endpoint=False)
+    q = np.array(good_branches[0][0], dtype=float)
+    table = []  # (PAN_GRID,) least distance of a pan-only shape, and which shape/box
+    for pan in pans:
+        q[0] = pan
+        distances = scene.signed_distances(q)[rows]
+        table.append(distances)
+    table = np.array(table)  # (PAN_GRID, rows, boxes)
+    least = table.reshape(PAN_GRID, -1).min(axis=1)
+    clearance = checker.limits.clearance_m
+    segments = []
+    for i in range(problem.num_cons - 1):
+        a = np.mod([b[0] for b in good_branches[i]], 2 * np.pi)
+        b = np.mod([b[0] for b in good_branches[i + 1]], 2 * np.pi)
+        worst = _sweep_minimum(least, pans, a, b)  # (len a, len b): the better way round's least
+        if worst.max() >= clearance:
+            continue
+        # The pair of branches and the way round that comes closest to passing.
+        k = int(np.argmax(worst))
+        best = float(worst.flat[k])
+        pan_at = int(np.flatnonzero(least <= best + 1e-12)[0])
+        row, box = np.unravel_index(np.argmin(table[pan_at]), table[pan_at].shape)
+        names = scene.geometry
+        robot = names.names[names.robot_geometry_ids[rows[row]]]
+        what = names.describe(names.keep_out_geometry_ids[box])
+        verb = (f"enters {what} by {-1000 * best:.1f} mm" if best < 0 else
+                f"passes {1000 * best:.1f} mm from {what} (clearance {1000 * clearance:g} mm)")
+        segments.append(InfeasibleSegment(
+            i + 1, i + 2, "collision",
+            f"collision with {what}: {robot} {verb} on either way shoulder_pan turns from con_{i + 1} to "
+            f"con_{i + 2}, on every inverse-kinematics branch",
+            blocked_alternatives=max(_actions_through(problem, i), 1)))
+    return segments
+
+
+def _sweep_minimum(least: np.ndarray, pans: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """For each pan pair (a_r, b_c), shape (len a, len b): the least of ``least`` (the
+    clearance at each grid pan) over the arc from a_r to b_c, on the way round where that
+    least is larger (the arc's grid pans strictly between the ends)."""
+    turn = 2 * np.pi
+    forward = np.mod(pans[None, None, :] - a[:, None, None], turn)  # pans ahead of a
+    length = np.mod(b[None, :] - a[:, None], turn)[:, :, None]
+    inside_forward = (forward > 0) & (forward < length)
+    inside_backward = (forward > length) & (forward < turn)
+    values = least[None, None, :]
+    ccw = np.where(inside_forward, values, np.inf).min(axis=-1)
+    cw = np.where(inside_backward, values, np.inf).min(axis=-1)
+    return np.maximum(ccw, cw)
 
 
 def _closeness(detail: str) -> float:
@@ -133,14 +228,14 @@ _NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
 
 
 def distinct_reasons(segments: Sequence[InfeasibleSegment]) -> tuple[InfeasibleSegment, ...]:
-    """``segments`` with those saying the same thing merged: same span, same reason and the
-    same detail but for its measured numbers (``elbow straight (|sin q3| = 0.054 < 0.06)``
-    and ``... 0.031 ...``). The first of each kind stands for it (its demo, or none when
-    several demos were blocked alike), with ``blocked_alternatives`` summed; first-found
-    order is kept."""
+    """``segments`` with those saying the same thing merged: the same reason and the same
+    detail but for its measured numbers (``elbow straight (|sin q3| = 0.054 < 0.06)`` and
+    ``... 0.031 ...``; the link and box a collision names are kept), on whichever span.
+    The first of each kind stands for it (its span; its demo, or none when several demos
+    were blocked alike), with ``blocked_alternatives`` summed; first-found order is kept."""
     merged: dict[tuple, InfeasibleSegment] = {}
     for segment in segments:
-        key = (segment.con_from, segment.con_to, segment.reason, _NUMBER.sub("#", segment.detail))
+        key = (segment.reason, _NUMBER.sub("#", segment.detail))
         if key not in merged:
             merged[key] = segment
             continue
