@@ -8,6 +8,7 @@ written (checked before any work), a name too long for the file system, a full d
 reader that stops reading, Ctrl-C and SIGTERM during start-up, and internal errors.
 """
 
+import dataclasses
 import json
 import math
 import signal
@@ -104,7 +105,14 @@ def test_problem_size_counts_without_allocating_and_matches_the_candidates():
     counts = candidate_counts(task)
     trial = draw_trial(task, 0)
     assert counts == tuple(len(angle_candidates(con)) for con in trial.critical_configurations) == (1, 25, 25, 25, 1)
-    bounded = task_from_spec(task_spec_from_text(HUGE_BOUND), file="huge.yaml")
+    # A task file refuses the bound as an angle over a full turn; a task built in Python
+    # still meets the size check.
+    with pytest.raises(InputError, match="more than a full turn"):
+        task_from_spec(task_spec_from_text(HUGE_BOUND), file="huge.yaml")
+    bounded = task_from_spec(task_spec_from_text(scenario_text()), file="huge.yaml")
+    cons = list(bounded.critical_configurations)
+    cons[1] = dataclasses.replace(cons[1], euler_zyx_upper=np.array([0.0, -np.pi / 2, 1e9]))
+    bounded = dataclasses.replace(bounded, critical_configurations=tuple(cons))
     assert candidate_counts(bounded)[1] == 3_819_718_648  # counted, never made
     # pairs of span ends: k=1: 1*25, k=2: 26*25, k=3: 51*25, k=4: 76*1
     size = estimate_problem_size(counts, demo_deltas=495, num_demos=5)
