@@ -104,3 +104,26 @@ def test_the_pan_sweep_takes_the_better_way_round():
     np.testing.assert_allclose(mut._sweep_minimum(least, pans, a, b), 0.005)
     # A pan at its own end is the configuration's business, not the sweep's.
     np.testing.assert_allclose(mut._sweep_minimum(least, pans, np.radians([90.0]), np.radians([100.0])), 0.1)
+
+
+def test_a_configuration_only_other_branches_reach_is_refused_at_once():
+    """Base 15 cm forward: con_3 keeps the margins only on branches con_1 and con_2 do
+    not have; the arm cannot change branch without crossing a singularity, so the search
+    (20 rounds, 22-50 s, six lines before) is not needed."""
+    result, *_ = plan_shelf(0.15, 0.05)
+    assert result.status == "no_executable_plan" and result.search_rounds == 1
+    (segment,) = result.infeasible
+    assert (segment.con_from, segment.con_to, segment.reason) == (2, 3, "collision")
+    assert "at con_3" in segment.detail and "changing branch crosses a singularity" in segment.detail
+    assert "upper_arm_link/" in segment.detail and "box_shell" in segment.detail
+
+
+def test_a_branch_is_the_side_of_each_singularity():
+    q = np.array([0.3, -1.2, 1.6, -1.97, -np.pi / 2, 0.0])
+    elbow, wrist, shoulder = mut.branch_signature(q)
+    assert (elbow, wrist) == (1, -1) and shoulder in (-1, 1)
+    flipped = q.copy()
+    flipped[2] = -q[2]
+    assert mut.branch_signature(flipped)[0] == -1
+    turned = q + 2 * np.pi * np.array([1, 0, 1, 1, 1, 1])  # windings change no branch
+    assert mut.branch_signature(turned) == mut.branch_signature(q)

@@ -12,6 +12,15 @@ checks each critical configuration's branches (every candidate of its bounded an
 with the same margins as :class:`~drake_lfd.robot.joint_path.JointPathChecker`, and
 says, once per such configuration, which margin each branch breaks and by how much.
 
+Two more refusals of the kind follow from the same branches. A branch is the signs of
+``sin q3``, ``sin q5`` and the wrist centre's distance from the shoulder axis
+(:func:`branch_signature`), each zero only at a singularity: a path that keeps the
+margins keeps its branch, so when no branch keeps every margin at every critical
+configuration, the first configuration where none is left blocks every composition.
+And shapes whose clearance depends on shoulder_pan alone must pass every pan between
+two consecutive configurations' branches, one way round or the other: when both ways
+come within the clearance, that span blocks every composition.
+
 :func:`distinct_reasons` merges the segments the search did report into one per distinct
 reason, with how many alternatives each blocked.
 
@@ -34,7 +43,7 @@ from drake_lfd.planning.executable import InfeasibleSegment
 from drake_lfd.robot.initial_ik import UnreachableConfigurationError, initial_configuration_candidates
 from drake_lfd.robot.joint_path import JointPathChecker, shoulder_singularity_distance
 
-__all__ = ["branch_violation", "blocked_configurations", "distinct_reasons"]
+__all__ = ["branch_signature", "branch_violation", "blocked_configurations", "distinct_reasons"]
 
 
 def branch_violation(checker: JointPathChecker, q: np.ndarray, distance_m: float, robot_geometry: str | None,
@@ -58,16 +67,24 @@ def branch_violation(checker: JointPathChecker, q: np.ndarray, distance_m: float
     if distance_m < limits.clearance_m:
         verb = (f"enters {box} by {-1000 * distance_m:.1f} mm" if distance_m < 0 else
                 f"passes {1000 * distance_m:.1f} mm from {box} (clearance {1000 * limits.clearance_m:g} mm)")
-        return "collision", f"collision {robot_geometry} {box}", f"collision with {box}: {robot_geometry} {verb}"
+        return "collision", f"collision {robot_geometry} {box}", f"{robot_geometry} {verb}"
     return None
 
 
-def _configuration_problems(checker: JointPathChecker, poses: np.ndarray, con: int) -> tuple[list, list]:
+def branch_signature(q: np.ndarray) -> tuple[int, int, int]:
+    """The inverse-kinematics branch of configuration ``q`` (6,): the signs of ``sin q3``
+    (elbow), of ``sin q5`` (wrist) and of the wrist centre's distance from the shoulder
+    axis. Each is zero only at one of the three singularities, so a joint path that
+    keeps the singularity margins keeps its branch."""
+    return (int(np.sign(np.sin(q[2]))), int(np.sign(np.sin(q[4]))), int(np.sign(shoulder_singularity_distance(q))))
+
+
+def _configuration_problems(checker: JointPathChecker, poses: np.ndarray, con: int) -> tuple[list, list, list]:
     """The violations ``(reason, kind, detail)`` of the inverse-kinematics branches of
-    every candidate pose (g, 8) of critical configuration ``con`` (1-based), and the
-    branches (q, shape (6,)) that keep every margin. A candidate no branch reaches adds
-    ``("reach", ...)``."""
-    problems, good = [], []
+    every candidate pose (g, 8) of critical configuration ``con`` (1-based), the branches
+    (q, shape (6,)) that keep every margin, and ``(signature, violation)`` of every branch
+    found. A candidate no branch reaches adds ``("reach", ...)``."""
+    problems, good, branches_found = [], [], []
     for D in poses:
         X_WE = RigidTransform(matrices_from_dual_quaternion(np.asarray(D)[None])[0])
         try:
@@ -78,11 +95,12 @@ def _configuration_problems(checker: JointPathChecker, poses: np.ndarray, con: i
         for branch in branches:
             violation = branch_violation(checker, branch.q, branch.min_distance_m, branch.closest_robot_geometry,
                                          branch.closest_box)
+            branches_found.append((branch_signature(branch.q), violation))
             if violation is None:
                 good.append(branch.q)
             else:
                 problems.append(violation)
-    return problems, good
+    return problems, good, branches_found
 
 
 def _actions_through(problem: CompositionProblem, con: int) -> int:
@@ -99,34 +117,67 @@ def blocked_configurations(problem: CompositionProblem, checker: JointPathChecke
     the same margin, the value closest to passing."""
     segments = []
     n = problem.num_cons
-    good_branches = []
+    good_branches, found_branches = [], []
     for index, poses in enumerate(problem.candidate_poses):
         number = index + 1
-        problems, good = _configuration_problems(checker, poses, number)
+        problems, good, found = _configuration_problems(checker, poses, number)
         good_branches.append(good)
+        found_branches.append(found)
         if good:
             continue
-        by_kind: dict[str, list] = {}
-        for reason, kind, detail in problems:
-            by_kind.setdefault(kind, []).append((reason, detail))
-        parts = []
-        for kind, found in by_kind.items():
-            reason, detail = min(found, key=lambda item: _closeness(item[1]))
-            parts.append((len(found), reason, detail))
-        parts.sort(key=lambda part: -part[0])
         p = np.round(translation_from_dual_quaternion(poses[0]), 3).tolist()
-        if [reason for _count, reason, _detail in parts] == ["reach"]:
+        if all(reason == "reach" for reason, _kind, _detail in problems):
             detail = f"at con_{number} (p = {p} m): out of the UR5e's reach, no inverse-kinematics solution"
+            reason = "reach"
         else:
-            branches = len(problems)
-            detail = f"at con_{number} (p = {p} m), on every inverse-kinematics branch: " + "; ".join(
-                f"{detail} on {count} of {branches}" for count, _reason, detail in parts)
+            reason, summary = _summary(problems)
+            detail = f"at con_{number} (p = {p} m), on every inverse-kinematics branch: {summary}"
         segments.append(InfeasibleSegment(
-            max(number - 1, 1), min(max(number, 2), n), parts[0][1], detail,
+            max(number - 1, 1), min(max(number, 2), n), reason, detail,
             blocked_alternatives=max(_actions_through(problem, index), 1)))
+    if not segments:
+        segments = _branch_changes(problem, found_branches)
     if not segments:
         segments = _blocked_pan_sweeps(problem, checker, good_branches)
     return segments
+
+
+def _summary(problems: list) -> tuple[str, str]:
+    """The reason of the most common margin broken, and one line: each margin broken, by
+    how many branches, with the value closest to passing."""
+    by_kind: dict[str, list] = {}
+    for reason, kind, detail in problems:
+        by_kind.setdefault(kind, []).append((reason, detail))
+    parts = []
+    for kind, found in by_kind.items():
+        reason, detail = min(found, key=lambda item: _closeness(item[1]))
+        parts.append((len(found), reason, detail))
+    parts.sort(key=lambda part: -part[0])
+    return parts[0][1], "; ".join(f"{detail} on {count} of {len(problems)}" for count, _reason, detail in parts)
+
+
+def _branch_changes(problem: CompositionProblem, found_branches: list[list]) -> list[InfeasibleSegment]:
+    """The critical configuration where no branch is left that keeps the margins at every
+    configuration before it (a path keeps its branch, :func:`branch_signature`), as one
+    segment, or none."""
+    left = None  # branches that keep every margin at every configuration so far
+    for index, found in enumerate(found_branches):
+        here = {signature for signature, violation in found if violation is None}
+        kept = here if left is None else left & here
+        if not kept:
+            number = index + 1
+            problems = [violation for signature, violation in found if signature in left and violation is not None]
+            p = np.round(translation_from_dual_quaternion(problem.candidate_poses[index][0]), 3).tolist()
+            if problems:
+                reason, summary = _summary(problems)
+            else:
+                reason, summary = "reach", "no inverse-kinematics solution there"
+            detail = (f"at con_{number} (p = {p} m), on every branch the arm can keep from con_1 (changing "
+                      f"branch crosses a singularity): {summary}")
+            return [InfeasibleSegment(number - 1, number, reason, detail,
+                                      blocked_alternatives=max(_actions_through(problem, index), 1))]
+        left = kept
+    return []
 
 
 # The shoulder-pan sweep is checked on a grid of this many angles per turn (1 deg).
@@ -181,6 +232,10 @@ def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
         a = np.mod([b[0] for b in good_branches[i]], 2 * np.pi)
         b = np.mod([b[0] for b in good_branches[i + 1]], 2 * np.pi)
         worst = _sweep_minimum(least, pans, a, b)  # (len a, len b): the better way round's least
+        # A path keeps its branch: only pairs of the same branch can be joined.
+        same = np.array([[branch_signature(qa) == branch_signature(qb) for qb in good_branches[i + 1]]
+                         for qa in good_branches[i]])
+        worst = np.where(same, worst, -np.inf)
         if worst.max() >= clearance:
             continue
         # The pair of branches and the way round that comes closest to passing.
@@ -195,8 +250,8 @@ def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
                 f"passes {1000 * best:.1f} mm from {what} (clearance {1000 * clearance:g} mm)")
         segments.append(InfeasibleSegment(
             i + 1, i + 2, "collision",
-            f"collision with {what}: {robot} {verb} on either way shoulder_pan turns from con_{i + 1} to "
-            f"con_{i + 2}, on every inverse-kinematics branch",
+            f"{robot} {verb} whichever way shoulder_pan turns from con_{i + 1} to con_{i + 2}, on every "
+            "inverse-kinematics branch",
             blocked_alternatives=max(_actions_through(problem, i), 1)))
     return segments
 
