@@ -273,3 +273,31 @@ def test_concrete_task_from_fixed():
     np.testing.assert_array_equal(task.critical_configurations[1].euler_zyx, euler[1])
     with pytest.raises(ValueError):
         task.critical_configurations[0].p[0] = 1.0  # read-only
+
+
+def test_the_tool_direction_table_of_task_files_rst():
+    """Every entry of docs/task_files.rst's tool-down / tool-horizontal table, checked with
+    the UR5e's kinematics: inverse kinematics of E at that orientation, then tool0's z
+    axis (out of the flange) by forward kinematics points the stated way."""
+    import re
+
+    from drake_lfd.io.yaml_checks import angle_from_text
+    from drake_lfd.robot.initial_ik import initial_configuration_candidates
+    from drake_lfd.robot.kinematics import UR5eKinematics
+
+    text = (Path(__file__).parents[1] / "docs" / "task_files.rst").read_text()
+    rows = re.findall(r"^\s*(?:down|horizontal), along ([+-][xyz]) of W\s+``\[(.*?)\]``\s+``\[(.*?)\]``\s*$",
+                      text, re.MULTILINE)
+    assert len(rows) == 5
+    frames = [tasks.rigid_transform_from_euler_zyx([0, 0, 0.2], [0, math.pi / 2, 0]), RigidTransform()]
+    for direction, *eulers in rows:
+        expected = np.zeros(3)
+        expected["xyz".index(direction[1])] = 1.0 if direction[0] == "+" else -1.0
+        for X_tool0_E, euler in zip(frames, eulers):
+            angles = [angle_from_text(a) for a in euler.split(",")]
+            X_WE = tasks.rigid_transform_from_euler_zyx([0.45, 0.1, 0.35], angles)
+            (best, *_) = initial_configuration_candidates(X_WE, X_tool0_E=X_tool0_E)
+            kinematics = UR5eKinematics(X_tool0_E=X_tool0_E)
+            np.testing.assert_allclose(kinematics.X_WE(best.q).GetAsMatrix4(), X_WE.GetAsMatrix4(), atol=1e-4)
+            z_tool0 = kinematics.X_Wtool0(best.q).rotation().matrix()[:, 2]
+            np.testing.assert_allclose(z_tool0, expected, atol=1e-4, err_msg=f"{direction} {euler}")  # IK: 1e-5 rad

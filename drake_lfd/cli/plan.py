@@ -19,7 +19,7 @@ from drake_lfd.core.fidelity import COST_MODES
 from drake_lfd.planning.planner import PLANNERS
 
 
-__all__ = ["add_planning_arguments", "add_parser", "load_policy_for", "run"]
+__all__ = ["add_planning_arguments", "add_parser", "load_policy_for", "request_script_path", "run"]
 
 
 def add_planning_arguments(parser) -> None:
@@ -89,6 +89,16 @@ def load_policy_for(args, library=None):
     return policy
 
 
+def request_script_path(request_script: str, segment, count: int) -> Path:
+    """Where ``--request-script`` writes the guidance script of ``segment`` (one of
+    ``count`` uncovered segments): the path given, or ``SCRIPT_con_J_con_K.yaml`` beside
+    it when there are several."""
+    path = Path(request_script)
+    if count > 1:
+        path = path.with_name(f"{path.stem}_con_{segment.con_from}_con_{segment.con_to}{path.suffix or '.yaml'}")
+    return path
+
+
 def run(args) -> int:
     from drake_lfd.io.library import Library, check_end_effector_frame, library_features
     from drake_lfd.io.plan_json import describe_infeasible, describe_uncovered, plan_json
@@ -116,14 +126,19 @@ def run(args) -> int:
         from drake_lfd.planning.refinement import refine_plan
 
         result = refine_plan(result, checker)
+    script_paths = [request_script_path(args.request_script, u, len(result.uncovered)) for u in result.uncovered
+                    ] if args.request_script else None
     if args.json:
-        write_json(Path(args.json), plan_json(result, cost=args.cost))
+        write_json(Path(args.json), plan_json(result, cost=args.cost, script_paths=script_paths))
     if result.planned:
         chain = " + ".join(f"{s.demo} (con_{s.con_from}->con_{s.con_to})" for s in result.composition)
         print(f"{task.name}: planned with {chain}; total cost {result.total_cost:.3f}, "
               f"{len(result.timed.times)} poses over {result.timed.duration:.1f} s, "
               f"largest correction {result.max_correction_position_m * 1e3:.1f} mm / "
               f"{np.degrees(result.max_correction_rotation_rad):.1f} deg")
+        for s in result.composition:
+            print(f"  {s.demo} (con_{s.con_from}->con_{s.con_to}): largest correction "
+                  f"{s.max_correction_position_m * 1e3:.1f} mm / {np.degrees(s.max_correction_rotation_rad):.1f} deg")
         if result.fallback:
             print(f"note: the greedy Q-walk dead-ended; the {result.fallback} planner completed the plan")
         if result.refinement is not None:
@@ -142,11 +157,8 @@ def run(args) -> int:
         from drake_lfd.io.atomic_files import atomic_write_bytes
         from drake_lfd.io.guidance_scripts import request_guidance_yaml
 
-        for u in result.uncovered:
-            path = Path(args.request_script)
-            if len(result.uncovered) > 1:
-                path = path.with_name(f"{path.stem}_con_{u.con_from}_con_{u.con_to}{path.suffix or '.yaml'}")
-            atomic_write_bytes(path, request_guidance_yaml(trial, u).encode())
+        for u, path in zip(result.uncovered, script_paths):
+            atomic_write_bytes(path, request_guidance_yaml(trial, u, path=path).encode())
             print(f"  guidance script for drake-lfd record (edit it to show how): {path}")
     else:
         print("  (--request-script SCRIPT.yaml writes a guidance script of it for drake-lfd record)")

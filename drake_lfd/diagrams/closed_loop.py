@@ -45,6 +45,7 @@ from drake_lfd.core.tasks import ConcreteTask
 from drake_lfd.core.timing import TimedPlan, time_plan
 from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.diagrams.pipeline import Pipeline, build_pipeline
+from drake_lfd.diagrams.recording_meshcat import recording_meshcat
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.diagrams.plan_markers import draw_plan
@@ -469,7 +470,7 @@ def run_closed_loop(
         config.station.time_step = float(time_step)
     if stop_on_penetration is not None:
         config.monitor.stop_on_penetration = bool(stop_on_penetration)
-    meshcat = Meshcat() if record_html is not None else None
+    meshcat = recording_meshcat() if record_html is not None else None
     pipeline = build_pipeline(plan=plan, X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles,
                               safety_shells=safety_shells, tool=tool, with_table=table, config=config,
                               meshcat=meshcat)

@@ -25,6 +25,7 @@ from pydrake.geometry import Meshcat
 from drake_lfd.diagrams.closed_loop import ClosedLoopResult, ClosedLoopRunner
 from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.diagrams.pipeline import build_pipeline
+from drake_lfd.diagrams.recording_meshcat import recording_meshcat
 from drake_lfd.experiments.judging import judge_run
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
@@ -109,7 +110,7 @@ class TrialRunner:
 
     def _recorder(self) -> ClosedLoopRunner:
         if self._recording_runner is None:
-            meshcat = Meshcat()
+            meshcat = recording_meshcat()
             self._recording_runner = ClosedLoopRunner(
                 build_pipeline(self.task, meshcat=meshcat, **self._options), record_meshcat=meshcat)
         return self._recording_runner
@@ -313,8 +314,9 @@ def describe_boxes(task: Task | None) -> str:
 
 
 def trial_summary_line(outcome: TrialOutcome, task: Task | None = None) -> str:
-    """One console line per trial: composition, closest approach to the boxes, and the
-    verdict with every failure reason (each cut to :data:`SUMMARY_REASON_CHARACTERS`).
+    """One console line per trial: composition (with ``--refine``, ``refined`` or why it
+    was not), closest approach to the boxes, and the verdict with every failure reason
+    (each cut to :data:`SUMMARY_REASON_CHARACTERS`).
 
     ``task`` (or, without it, the trial's planned task) says which obstacles and shells
     the scene has, so a trial that did not run reads ``no run (1 obstacle, 1 shell)``.
@@ -330,4 +332,7 @@ def trial_summary_line(outcome: TrialOutcome, task: Task | None = None) -> str:
     else:
         distance = outcome.run.min_shell_distance_m
         clearance = f"min distance {distance * 100:.1f} cm" if np.isfinite(distance) else describe_boxes(scene_task)
+    refinement = getattr(outcome.plan, "refinement", None) if outcome.plan is not None else None
+    if refinement is not None:  # planned with --refine: whether it took, or why not
+        composition += "; refined" if refinement.refined else f"; not refined: {shorten_reason(refinement.reason)}"
     return f"trial {outcome.trial} (seed {outcome.seed}): {composition}; {clearance}; {verdict}"

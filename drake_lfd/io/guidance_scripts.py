@@ -222,14 +222,18 @@ def guidance_script_from_text(text, *, file=None) -> GuidanceScript:
     return guidance_script_from_spec(guidance_script_spec_from_text(text, file=file), file=file)
 
 
-def request_guidance_yaml(task, segment, *, duration_s: float = 3.0) -> str:
+def request_guidance_yaml(task, segment, *, duration_s: float = 3.0, path=None) -> str:
     """A guidance script (YAML text, ready to edit) of the motion a demonstration request
     asks for: E from ``segment``'s con_from pose to its con_to pose in the task's frames,
     split into steps under :data:`MAX_WAYPOINT_TURN_RAD`, for ``drake-lfd record``.
 
     ``segment`` is a :class:`~drake_lfd.planning.planner.UncoveredSegment` carrying its
-    poses; ``task`` the concrete task (name, base and tool frames).
+    poses; ``task`` the concrete task (name, base and tool frames); ``path`` where the
+    script is written, as the user named it (the comment's commands record that file
+    and add the log beside it; without it, a file named after the segment).
     """
+    import shlex
+
     import numpy as np
     from pydrake.math import RigidTransform, RollPitchYaw
 
@@ -252,6 +256,8 @@ def request_guidance_yaml(task, segment, *, duration_s: float = 3.0) -> str:
         X = RigidTransform(matrices_from_dual_quaternion(np.asarray(D)[None])[0])
         waypoints.append(f"  - {{t: {duration_s * i / steps:.3g}, {pose_text(X)}}}")
     name = f"{task.name}_con_{segment.con_from}_con_{segment.con_to}"
+    script = Path(f"{name}.yaml") if path is None else Path(path)
+    log = script.with_suffix(".csv")
     axis = ", ".join(f"{a:.2f}" for a in segment.axis)
     move = ", ".join(f"{t:.3f}" for t in segment.translation_m)
     lines = [
@@ -259,8 +265,8 @@ def request_guidance_yaml(task, segment, *, duration_s: float = 3.0) -> str:
         f"# turning {math.degrees(segment.angle_rad):.0f} deg about body axis [{axis}] while moving [{move}] m",
         f"# (in con_{segment.con_from}'s frame). Edit the waypoints to show how a person does it",
         "# (the path between the ends is what the library learns), then:",
-        f"#   drake-lfd record {name}.yaml --out {name}.csv",
-        f"#   drake-lfd library add LIB {name}.csv --name NAME",
+        f"#   drake-lfd record {shlex.quote(str(script))} --out {shlex.quote(str(log))}",
+        f"#   drake-lfd library add LIB {shlex.quote(str(log))} --name NAME",
         f"name: {name}",
         f"description: the motion {task.name} needs from con_{segment.con_from} to con_{segment.con_to}",
         f"X_WB: {{{pose_text(task.X_WB)}}}",

@@ -34,15 +34,20 @@ def critical_configurations_json(result: PlanResult) -> list[dict]:
 
 def composition_json(result: PlanResult) -> list[dict]:
     return [
-        {"demo": s.demo, "from": s.con_from, "to": s.con_to, "cost": float(s.cost)}
+        {"demo": s.demo, "from": s.con_from, "to": s.con_to, "cost": float(s.cost),
+         "max_correction": {"position_m": float(s.max_correction_position_m),
+                            "rotation_rad": float(s.max_correction_rotation_rad)}}
         for s in result.composition
     ]
 
 
-def uncovered_json(result: PlanResult) -> list[dict]:
+def uncovered_json(result: PlanResult, script_paths=None) -> list[dict]:
     """The segments to demonstrate, each with ``guidance_script``: a guidance script
-    (YAML text) for ``drake-lfd record`` showing the motion, ready to edit."""
+    (YAML text) for ``drake-lfd record`` showing the motion, ready to edit; written for
+    the path ``script_paths[i]`` of segment i when given (``plan --request-script``)."""
     from drake_lfd.io.guidance_scripts import request_guidance_yaml
+
+    paths = list(script_paths) if script_paths is not None else [None] * len(result.uncovered)
 
     return [
         {
@@ -51,17 +56,20 @@ def uncovered_json(result: PlanResult) -> list[dict]:
             "axis": _floats(u.axis),
             "angle_rad": float(u.angle_rad),
             "translation_m": _floats(u.translation_m),
-            **({"guidance_script": request_guidance_yaml(result.task, u)} if u.pose_from is not None else {}),
+            **({"guidance_script": request_guidance_yaml(result.task, u, path=path)}
+               if u.pose_from is not None else {}),
         }
-        for u in result.uncovered
+        for u, path in zip(result.uncovered, paths)
     ]
 
 
-def plan_json(result: PlanResult, cost: str = "paper") -> dict:
+def plan_json(result: PlanResult, cost: str = "paper", script_paths=None) -> dict:
     """The ``plan --json`` document; ``cost`` is the action cost it was planned with
     (``plan_task``'s ``cost``, the ``"cost"`` field). Extra optional fields: ``q_planner``
     (Q runs only) and ``refinement`` (``plan --refine`` only: the trajectory
-    optimization's report, ``planning/refinement.py``)."""
+    optimization's report, ``planning/refinement.py``). ``script_paths``: where
+    ``--request-script`` writes each uncovered segment's guidance script (its comment
+    names that file)."""
     poses = []
     critical_indices = []
     if result.timed is not None:
@@ -90,7 +98,7 @@ def plan_json(result: PlanResult, cost: str = "paper") -> dict:
         "joint_trajectory": joint_trajectory_json(result),
         "timing": result.timing if result.planned else None,
         "infeasible": infeasible_json(result),
-        "uncovered": uncovered_json(result),
+        "uncovered": uncovered_json(result, script_paths),
     }
     if result.planner == "q":
         document["q_planner"] = {
@@ -116,7 +124,8 @@ def joint_trajectory_json(result: PlanResult) -> dict:
 def infeasible_json(result: PlanResult) -> list[dict]:
     """The segments found blocked for the robot: for ``no_executable_plan`` every
     composition's; for a plan, those the search set aside on the way."""
-    return [{"from": s.con_from, "to": s.con_to, "reason": s.reason, "detail": s.detail, "demo": s.demo}
+    return [{"from": s.con_from, "to": s.con_to, "reason": s.reason, "detail": s.detail, "demo": s.demo,
+             "blocked_alternatives": int(s.blocked_alternatives)}
             for s in result.infeasible]
 
 

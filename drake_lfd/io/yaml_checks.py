@@ -47,6 +47,7 @@ __all__ = [
     "MAX_YAML_DEPTH",
     "MAX_YAML_FILE_BYTES",
     "MAX_COORDINATE_M",
+    "MAX_ANGLE_RAD",
     "Scalar",
     "required",
     "PoseSpec",
@@ -70,9 +71,13 @@ __all__ = [
 MAX_YAML_FILE_BYTES = 1 << 20
 #: Deepest nesting of mappings and lists a file may have (a task file needs 5).
 MAX_YAML_DEPTH = 32
-#: Largest magnitude of a position coordinate, in metres: beyond any robot's reach, and
-#: far from where squares of it would overflow.
-MAX_COORDINATE_M = 1000.0
+#: Largest magnitude of a position coordinate, in metres: ten times a UR5e's reach and
+#: more than any work cell; a larger value is nearly always millimetres or centimetres
+#: written as metres (``450`` for 0.45 m).
+MAX_COORDINATE_M = 10.0
+#: Largest magnitude of an angle, in radians: a full turn. A larger one is nearly always
+#: degrees written without ``deg`` (``-90`` for -pi/2).
+MAX_ANGLE_RAD = 2.0 * math.pi
 
 # One number-like token: a YAML number, or a string such as "-pi/2", "90deg", "1e-3".
 Scalar = Union[float, int, str]
@@ -474,15 +479,17 @@ def coordinate(value, *, file, field):
     number = finite(value, file=file, field=field)
     if abs(number) > MAX_COORDINATE_M:
         raise InputError(
-            f"{number:g} m is out of any robot's reach (positions are within +-{MAX_COORDINATE_M:g} m "
-            "of the origin)",
+            f"{number:g} m is out of any robot's reach (positions are in metres, within +-{MAX_COORDINATE_M:g} m "
+            f"of the origin; for millimetres write {number / 1000:g})",
             file=file, field=field,
         )
     return number
 
 
 def angle(value, *, file, field):
-    """Radians from a checked scalar: a number or any spelling of :func:`angle_from_text`."""
+    """Radians from a checked scalar: a number or any spelling of :func:`angle_from_text`,
+    at most a full turn (:data:`MAX_ANGLE_RAD`) in magnitude."""
+    written = value
     if isinstance(value, str):
         number = angle_from_text(value)
         if number is None:
@@ -493,7 +500,24 @@ def angle(value, *, file, field):
                 field=field,
             )
         value = number
-    return finite(value, file=file, field=field)
+    number = finite(value, file=file, field=field)
+    if abs(number) > MAX_ANGLE_RAD + 1e-9:
+        if isinstance(written, str) and not _plain_number(written):  # -720deg, 3pi
+            message = f"{written.strip()} is more than a full turn (angles are within +-2 pi, +-360deg)"
+        else:
+            message = (f"{number:g} rad is more than a full turn: angles are radians; "
+                       f"for degrees write {number:g}deg")
+        raise InputError(message, file=file, field=field)
+    return number
+
+
+def _plain_number(text):
+    """Whether ``text`` is an angle written as a bare number (radians: no ``deg``, no pi)."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def vector(values, count, *, file, field, convert):

@@ -50,17 +50,20 @@ class InfeasibleSegment:
 
     ``con_from``/``con_to`` are 1-based; ``reason`` one of ``reach``, ``joint_limit``,
     ``singularity``, ``collision``; ``demo`` the demonstration mapped onto it (empty for a
-    critical configuration out of reach before any composition)."""
+    critical configuration out of reach before any composition); ``blocked_alternatives``
+    how many alternatives (actions: demo, span and candidate angles) this reason blocked."""
 
     con_from: int
     con_to: int
     reason: str
     detail: str
     demo: str = ""
+    blocked_alternatives: int = 1
 
     def describe(self) -> str:
         demo = f" ({self.demo})" if self.demo else ""
-        return f"con_{self.con_from} -> con_{self.con_to}{demo}: {self.reason}: {self.detail}"
+        blocked = f" [blocks {self.blocked_alternatives} alternatives]" if self.blocked_alternatives > 1 else ""
+        return f"con_{self.con_from} -> con_{self.con_to}{demo}: {self.reason}: {self.detail}{blocked}"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,6 +112,7 @@ def search_executable(
     alternatives: Callable[[Step], list] | None = None,
     max_rounds: int = MAX_SEARCH_ROUNDS,
     max_starts: int = MAX_START_BRANCHES,
+    refusal: Callable[[CompositionProblem], list[InfeasibleSegment]] | None = None,
 ) -> ExecutableSearch:
     """Lazy search for an executable composition (see the module docstring).
 
@@ -122,13 +126,26 @@ def search_executable(
     pose; only when nothing runs from it does it start over from the next branch, up to
     ``max_starts``, each time on a fresh copy of ``problem`` (an action blocked from one
     start may run from another). The blocked segments reported are the first start's.
+
+    ``refusal(problem)`` (``planning/refusals.py``) is asked once, when the first
+    composition is blocked: the segments it returns block every composition whatever
+    is chosen, and the search stops with them at once.
     """
     first = None
+    asked: list = []
+
+    def refused(problem):
+        if refusal is not None and not asked:
+            asked.append(tuple(refusal(problem)))
+        return asked[0] if asked else ()
+
     for start_index in range(max_starts):
         attempt = copy.copy(problem)
         attempt.cost = dict(problem.cost)
         search = _search_from(attempt, solve, compose, checker, demo_names, start_index,
-                              alternatives=alternatives, max_rounds=max_rounds)
+                              alternatives=alternatives, max_rounds=max_rounds, refused=refused)
+        if search.steps is None and asked and asked[0]:
+            return search  # no other start can help
         if search.steps is not None:
             if first is not None:
                 search = dataclasses.replace(search, blocked=first.blocked + search.blocked,
@@ -141,7 +158,8 @@ def search_executable(
     return first
 
 
-def _search_from(problem, solve, compose, checker, demo_names, start_index, *, alternatives, max_rounds):
+def _search_from(problem, solve, compose, checker, demo_names, start_index, *, alternatives, max_rounds,
+                 refused=lambda problem: ()):
     """The lazy search with the start fixed to branch ``start_index`` (see
     :func:`search_executable`)."""
     blocked: list[InfeasibleSegment] = []
@@ -170,6 +188,10 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
         composed, path = check(overrides)
         if path is not None:
             tried_a_start = True
+        if path is None or not path.executable:
+            refusal = refused(problem)
+            if refusal:
+                return ExecutableSearch(None, None, None, refusal, rounds, tried_a_start)
         if path is None:
             # con_1 at this candidate has no collision-free joint configuration: no
             # action from it can run.

@@ -29,6 +29,8 @@ from drake_lfd.core.dual_quaternion import (
 from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.executable import InfeasibleSegment, search_executable
 from drake_lfd.planning.problem_size import check_problem_size
+from drake_lfd.planning.refusals import blocked_configurations, distinct_reasons
+from drake_lfd.planning.stretching import solve_within_stretch_bound
 from drake_lfd.core.features import Feature
 from drake_lfd.core.fidelity import FidelityWeights, check_cost_mode
 from drake_lfd.core.mapping import map_segment
@@ -72,10 +74,15 @@ PLANNERS = ("exact", "q")
 
 @dataclasses.dataclass(frozen=True)
 class ComposedStep:
+    """One step of a plan; ``max_correction_*``: the largest correction its mapping made
+    on its span (``planning/stretching.py`` bounds the position's)."""
+
     demo: str
     con_from: int  # 1-based
     con_to: int  # 1-based
     cost: float
+    max_correction_position_m: float = 0.0
+    max_correction_rotation_rad: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -312,6 +319,7 @@ def compose_plan(
     floor_z: float | None = None,
     points_E: np.ndarray | None = None,
     overrides: Mapping[int, tuple[int | None, float | None]] | None = None,
+    per_step: list | None = None,
 ) -> tuple[np.ndarray, list[int], np.ndarray, float, float]:
     """Maps each step's demo onto its span (see :func:`map_span_clear`) and joins them.
 
@@ -321,7 +329,8 @@ def compose_plan(
 
     Returns poses (N, 8), critical indices (n,), chosen euler_zyx (n, 3), the exact
     cost of each step (its allocation's total alpha), and the largest position and
-    rotation corrections applied.
+    rotation corrections applied; ``per_step``, when given, receives each step's
+    ``(position_m, rotation_rad)`` corrections.
     """
     names = list(features)
     n = problem.num_cons
@@ -348,6 +357,8 @@ def compose_plan(
         critical.extend(int(start + a) for a in anchors[1:])
         max_position = max(max_position, mapped.max_correction_position_m)
         max_rotation = max(max_rotation, mapped.max_correction_rotation_rad)
+        if per_step is not None:
+            per_step.append((mapped.max_correction_position_m, mapped.max_correction_rotation_rad))
     return np.concatenate(pieces), critical, chosen, costs, max_position, max_rotation
 
 
@@ -459,11 +470,31 @@ def plan_task(
             first, twist = overrides.get(index, (None, None))
             if twist is None:
                 overrides[index] = (first, twists_of(step, first, 1)[0])
+        per_step: list = []
         path, critical, chosen, costs, max_position, max_rotation = compose_plan(
-            problem, steps, features, angles, keep_out, floor_z, points_E, overrides)
+            problem, steps, features, angles, keep_out, floor_z, points_E, overrides, per_step)
         timed = time_plan(path, critical, max_speed_m_s=max_speed_m_s,
                           max_angular_speed_rad_s=max_angular_speed_rad_s)
-        return timed, chosen, costs, max_position, max_rotation
+        return timed, chosen, costs, max_position, max_rotation, per_step
+
+    correction_memo: dict = {}
+
+    def correction_of(step):
+        """The largest position correction of ``step``'s default mapping (memoized)."""
+        if step not in correction_memo:
+            span = problem.span_allocation(step)
+            task_poses = np.array(
+                [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)])
+            mapped, _ = map_span_clear(feature_list[step.demo].poses, span.allocation, task_poses,
+                                       twist=twists_of(step, None, 1)[0])
+            correction_memo[step] = mapped.max_correction_position_m
+        return correction_memo[step]
+
+    if cost == "fidelity":  # the paper's cost keeps Eq. 31 and its choices as they are
+        unbounded_solve = solve
+
+        def solve(problem: CompositionProblem):
+            return solve_within_stretch_bound(problem, unbounded_solve, correction_of)
 
     def alternatives(step):
         """Other demo suffixes and twists for ``step``, best first (the default left out)."""
@@ -479,9 +510,10 @@ def plan_task(
         steps = solve(problem)
         composed = None if steps is None else compose(steps)
     else:
-        search = search_executable(problem, solve, compose, checker, names, alternatives=alternatives)
+        search = search_executable(problem, solve, compose, checker, names, alternatives=alternatives,
+                                   refusal=lambda problem: blocked_configurations(problem, checker))
         steps, composed, joint_path, blocked, rounds = (
-            search.steps, search.composed, search.joint_path, search.blocked, search.rounds)
+            search.steps, search.composed, search.joint_path, distinct_reasons(search.blocked), search.rounds)
     greedy_completed, fallback = q_outcome.get("greedy_completed"), q_outcome.get("fallback")
     if steps is None:
         if blocked:
@@ -494,7 +526,7 @@ def plan_task(
             greedy_completed=greedy_completed, fallback=fallback,
             refine_episodes=refined,
         )
-    timed, chosen, costs, max_position, max_rotation = composed
+    timed, chosen, costs, max_position, max_rotation, per_step = composed
     timing_kind = "geometric"
     if joint_path is not None:
         # The executed timing: time-optimal along the checked joint path (if Toppra finds
@@ -506,7 +538,8 @@ def plan_task(
         except TimingError:
             pass
     composition = tuple(
-        ComposedStep(names[s.demo], s.j + 1, s.k + 1, cost) for s, cost in zip(steps, costs)
+        ComposedStep(names[s.demo], s.j + 1, s.k + 1, cost, *correction)
+        for s, cost, correction in zip(steps, costs, per_step)
     )
     return PlanResult(
         "planned", planner, task, chosen, composition, float(sum(costs)), timed,

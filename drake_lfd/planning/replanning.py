@@ -38,7 +38,7 @@ from pydrake.trajectories import PiecewisePose
 from drake_lfd.core.features import Feature
 from drake_lfd.core.tasks import ConcreteCriticalConfiguration, ConcreteTask
 from drake_lfd.core.timing import TimedPlan
-from drake_lfd.planning.planner import ComposedStep, PlanResult
+from drake_lfd.planning.planner import PlanResult
 
 __all__ = ["ScheduledPlan", "task_fingerprint", "replan", "splice_timed_plans"]
 
@@ -249,7 +249,8 @@ def replan(
     shift = kept - 1
     kept_steps = tuple(step for step in old.composition if step.con_to <= kept)
     new_steps = tuple(
-        ComposedStep(step.demo, step.con_from + shift, step.con_to + shift, step.cost) for step in sub.composition
+        dataclasses.replace(step, con_from=step.con_from + shift, con_to=step.con_to + shift)
+        for step in sub.composition
     )
     euler = np.array(old.euler_zyx, dtype=float).copy()
     euler[kept - 1 if unchanged else kept:] = sub.euler_zyx[0 if unchanged else 1:]

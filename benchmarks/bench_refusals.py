@@ -1,0 +1,130 @@
+"""Refusals: how long ``plan`` takes to say no, and whether it says each reason once. Printed, never asserted.
+
+Run: ``python benchmarks/bench_refusals.py [--pick-and-place 10] [--seed 0] [--after-only]``.
+
+Tasks: the shelf pick-and-place task of ``tests/data/shelf_pick_place.yaml`` (a cup
+carried over a boxed obstacle with a shell, ``paper5``'s tool frame) with its robot base
+on a 4 x 4 grid of placements 10 cm apart around the file's, and random pick-and-place
+work cells (:mod:`drake_lfd.experiments.pick_and_place`) with the base moved by up to
+30 cm (seeded), so that some are out of reach, singular or crowded by their shell.
+Each is planned as ``plan`` plans it (its work cell's joint-space checker, ``--cost
+fidelity``, the exact planner, trial seed 0), timed from the work cell's construction
+to the result, in one process.
+
+Each task is planned twice in the same run: ``after``, as the planner does now, and
+``before``, with the refusal pre-check (``planning/refusals.py``) and the merging of
+repeated reasons switched off, which is the search as it was. Printed per task: status,
+time and reason lines of both; for a task that plans, whether both give the same
+composition and joint path (``same``). Then the median and largest refusal times, how
+many refusals repeat a reason line, and whether every planned task is unchanged.
+Absolute times depend on the machine's load (``uptime`` is printed); the before/after
+ratio is measured under the same load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+import drake_lfd.planning.planner as planner_module
+from drake_lfd.core.tasks import draw_trial
+from drake_lfd.diagrams.pipeline import joint_path_checker
+from drake_lfd.experiments.pick_and_place import pick_and_place_yaml
+from drake_lfd.io.library import Library, library_features
+from drake_lfd.io.task_files import task_from_spec, task_spec_from_text
+from drake_lfd.robot.workcell import Workcell
+
+SHELF = Path(__file__).parents[1] / "tests" / "data" / "shelf_pick_place.yaml"
+
+
+def tasks(pick_and_place: int, seed: int) -> list[tuple[str, str]]:
+    """(label, task file text) of every benchmark task."""
+    shelf = SHELF.read_text()
+    out = []
+    for x in (-0.15, -0.05, 0.05, 0.15):
+        for y in (-0.15, -0.05, 0.05, 0.15):
+            out.append((f"shelf base ({x:+.2f}, {y:+.2f})",
+                        shelf.replace("X_WB: {p: [0, 0, 0]", f"X_WB: {{p: [{x}, {y}, 0]")))
+    rng = np.random.default_rng(seed)
+    for number in range(pick_and_place):
+        x, y = rng.uniform(-0.3, 0.3, 2)
+        text = pick_and_place_yaml(seed * 1000 + number).replace(
+            "X_WB: {p: [0, 0, 0]", f"X_WB: {{p: [{x:.3f}, {y:.3f}, 0]")
+        out.append((f"pick_and_place_{seed * 1000 + number} base ({x:+.2f}, {y:+.2f})", text))
+    return out
+
+
+def plan_once(text: str, features, before: bool):
+    """(result, seconds) of planning the task as ``plan`` does; ``before``: without the
+    pre-check and the merging of reasons."""
+    saved = planner_module.blocked_configurations, planner_module.distinct_reasons
+    if before:
+        planner_module.blocked_configurations = lambda problem, checker: []
+        planner_module.distinct_reasons = tuple
+    try:
+        task = task_from_spec(task_spec_from_text(text), file="bench")
+        trial = draw_trial(task, 0)
+        start = time.perf_counter()
+        workcell = Workcell.of(trial)
+        checker = joint_path_checker(workcell, task.simulation)
+        result = planner_module.plan_task(trial, features, floor_z=workcell.planner_floor, checker=checker,
+                                          cost="fidelity")
+        return result, time.perf_counter() - start
+    finally:
+        planner_module.blocked_configurations, planner_module.distinct_reasons = saved
+
+
+def reason_lines(result) -> list[str]:
+    return [segment.describe() for segment in result.infeasible] if result.status == "no_executable_plan" else []
+
+
+def same_plan(a, b) -> bool:
+    return (a.composition == b.composition and a.joint_path is not None and b.joint_path is not None
+            and np.array_equal(a.joint_path.q, b.joint_path.q))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--pick-and-place", type=int, default=10)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--after-only", action="store_true", help="skip the 'before' runs (minutes)")
+    args = parser.parse_args()
+    features = library_features(Library.open("paper5"))
+    print(f"load before: {os.getloadavg()[0]:.2f}")
+    refusal_times, before_times, repeated, planned_same, planned = [], [], 0, 0, 0
+    for label, text in tasks(args.pick_and_place, args.seed):
+        after, after_s = plan_once(text, features, before=False)
+        lines = reason_lines(after)
+        line = f"{label:<40} {after.status:<19} {after_s:6.2f} s, {len(lines)} reason line(s)"
+        if not args.after_only:
+            before, before_s = plan_once(text, features, before=True)
+            line += f" | before: {before.status:<19} {before_s:6.2f} s, {len(reason_lines(before))} line(s)"
+            if after.planned:
+                planned += 1
+                planned_same += same_plan(after, before)
+                line += f" | same: {'yes' if same_plan(after, before) else 'NO'}"
+            elif after.status == "no_executable_plan":
+                before_times.append(before_s)
+        if after.status == "no_executable_plan":
+            refusal_times.append(after_s)
+            repeated += len(lines) != len(set(lines))
+        print(line, flush=True)
+        for reason in lines:
+            print(f"    {reason[:220]}")
+    print()
+    print(f"load after: {os.getloadavg()[0]:.2f}")
+    if refusal_times:
+        print(f"refusals: {len(refusal_times)}, median {np.median(refusal_times):.2f} s, "
+              f"max {max(refusal_times):.2f} s; refusals repeating a reason line: {repeated}")
+    if before_times:
+        print(f"before (same tasks, same run): median {np.median(before_times):.2f} s, max {max(before_times):.2f} s")
+    if not args.after_only:
+        print(f"planned tasks: {planned}, same composition and joint path before and after: {planned_same}")
+
+
+if __name__ == "__main__":
+    main()
