@@ -17,6 +17,7 @@ from pydrake.systems.framework import DiagramBuilder
 
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.robot.kinematics import add_ur5e
+from drake_lfd.diagrams.recording_meshcat import recording_meshcat
 
 __all__ = ['SHOWCASE_CONFIGURATIONS', 'write_configurations_html']
 
@@ -53,7 +54,7 @@ def write_configurations_html(
     q_keyframes = np.atleast_2d(np.asarray(q_keyframes, dtype=float))
     if q_keyframes.shape[1] != 6:
         raise ValueError(f"q_keyframes must have shape (k, 6), got {q_keyframes.shape}")
-    meshcat = meshcat or Meshcat()
+    meshcat = meshcat or recording_meshcat()  # a standalone file: no viewer waits
     meshcat.SetCameraPose(camera_in_world=[1.3, -1.5, 1.0], target_in_world=[0.0, 0.0, 0.35])
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
