@@ -34,6 +34,14 @@ tries the inverse-kinematics branches of the first pose, best first, and for eac
 UR5e), shifting the start by one turn away from a limit the path ran into; the whole
 plan decides, not con_1 alone.
 
+Reuse: a checker remembers its last follows with the loop's whole state at the start of
+each span. A plan identical to one of them (times, poses, critical indices, to the bit)
+up to a critical configuration, from the same start, resumes there: the lazy search's
+next composition re-follows only the spans after the one it changed, and a trial of a
+task whose first spans do not depend on its variables only the rest. The steps before
+a critical configuration interpolate only the samples up to it, so the result is the
+full follow's, to the bit, whichever plans were followed before.
+
 Not for: choosing a composition (``planning/``), simulating the robot (``diagrams/``).
 """
 

@@ -24,6 +24,11 @@ a slow geometric pass). :func:`time_joint_path` gives that path its executed tim
    path (a demonstration's own corners) slow the motion as the limits require.
    Velocity is continuous everywhere: it is zero where pieces join.
 
+A piece's timing is remembered by its exact inputs (its recorded samples, its critical
+ones, the options, the arm and its limits; :mod:`~drake_lfd.core.exact_memo`): trials of
+a task that share a piece (every assembling trial, the first spans of filling and
+pouring) time it once per process, with the result timing it again would give.
+
 The result is sampled at the controller period, with the exact time each critical
 configuration is reached added as a sample (the tool passes a non-stop configuration at
 speed: the plan must say where it is due, not round it to a step).
@@ -54,13 +59,19 @@ from drake_lfd.robot.joint_path import JointPath
 from drake_lfd.robot.kinematics import UR5eKinematics
 
 __all__ = ["PathTimingOptions", "TimedJointPath", "TimingError", "time_joint_path", "retime_plan",
-           "corner_samples"]
+           "corner_samples", "forget_timed_pieces"]
 
 
 # Longest time a piece between stops may take; Toppra's answer beyond it is refused.
 _LONGEST_PIECE_S = 3600.0
 # Timed pieces remembered by their exact inputs (a few plans' worth; process-local).
 _PIECES = ExactMemo(maxsize=32)
+
+
+def forget_timed_pieces() -> None:
+    """Forgets the remembered timed pieces (a process that timed nothing yet; the
+    results are the same either way, only slower)."""
+    _PIECES.clear()
 
 
 class TimingError(RuntimeError):
