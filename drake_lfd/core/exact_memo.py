@@ -12,6 +12,7 @@ Not for: results that depend on anything but the key (state, time, randomness).
 
 from __future__ import annotations
 
+import threading
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from typing import Any
@@ -49,26 +50,30 @@ class ExactMemo:
             raise ValueError(f"maxsize must be at least 1, got {maxsize}")
         self.maxsize = maxsize
         self._results: OrderedDict[Hashable, Any] = OrderedDict()
+        self._lock = threading.Lock()  # trials may run in threads; compute runs outside it
         self.hits = 0
         self.misses = 0
 
     def get(self, key: Hashable, compute: Callable[[], Any]) -> Any:
         """The result remembered for ``key``, else ``compute()`` (remembered; an
         exception it raises is not)."""
-        if key in self._results:
-            self._results.move_to_end(key)
-            self.hits += 1
-            return self._results[key]
-        self.misses += 1
+        with self._lock:
+            if key in self._results:
+                self._results.move_to_end(key)
+                self.hits += 1
+                return self._results[key]
+            self.misses += 1
         result = compute()
-        self._results[key] = result
-        if len(self._results) > self.maxsize:
-            self._results.popitem(last=False)
+        with self._lock:
+            self._results[key] = result
+            while len(self._results) > self.maxsize:
+                self._results.popitem(last=False)
         return result
 
     def clear(self) -> None:
         """Forgets every result (the counts stay)."""
-        self._results.clear()
+        with self._lock:
+            self._results.clear()
 
     def __len__(self) -> int:
         return len(self._results)
