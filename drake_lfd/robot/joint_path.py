@@ -50,6 +50,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from collections import OrderedDict
 from collections.abc import Sequence
 
 import numpy as np
@@ -203,9 +204,12 @@ def ur5e_reach_m(X_tool0_E: RigidTransform | None = None) -> float:
     return abs(_A2) + abs(_A3) + _D4 + _D5 + _D6 + tool
 
 
-# Follows a checker remembers for resuming (the lazy search's last compositions and the
-# previous trials' plans; each holds one path and a checkpoint per critical configuration).
-_REMEMBERED_FOLLOWS = 8
+# Follows a checker remembers for resuming, per start configuration (the lazy search's
+# last compositions and the previous trials' plans; each holds one path and a checkpoint
+# per critical configuration), and the starts it remembers them for (the search tries up
+# to three branches and their windings).
+_REMEMBERED_FOLLOWS = 4
+_REMEMBERED_STARTS = 16
 
 
 @dataclasses.dataclass(frozen=True)
@@ -238,11 +242,13 @@ class _FollowRecord:
     checkpoints: dict
 
 
-def _same_rows(a: np.ndarray, b: np.ndarray, rows: int) -> bool:
-    """Whether the first ``rows`` rows of ``a`` and ``b`` exist in both and are equal to
-    the bit."""
-    return len(a) >= rows and len(b) >= rows and a.shape[1:] == b.shape[1:] and \
-        a[:rows].tobytes() == b[:rows].tobytes()
+def _equal_rows(a: np.ndarray, b: np.ndarray) -> int:
+    """How many leading rows of the float arrays ``a`` and ``b`` are equal to the bit."""
+    rows = min(len(a), len(b))
+    if a.shape[1:] != b.shape[1:]:
+        return 0
+    differ = np.flatnonzero((a[:rows].view(np.uint64) != b[:rows].view(np.uint64)).reshape(rows, -1).any(axis=1))
+    return int(differ[0]) if len(differ) else rows
 
 
 class JointPathChecker:
@@ -269,7 +275,8 @@ class JointPathChecker:
         self.X_WB = RigidTransform() if X_WB is None else RigidTransform(X_WB)
         self.limits = limits
         self._start_cache: dict[bytes, list[np.ndarray]] = {}
-        self._follows: list[_FollowRecord] = []  # the last follows, newest first
+        # The last follows from each start, newest first; the starts least recently used first.
+        self._follows: OrderedDict[bytes, list[_FollowRecord]] = OrderedDict()
         plant = scene.plant
         self.law = DifferentialIKLaw(
             plant=plant, model=scene.model, frame_E=plant.GetFrameByName(END_EFFECTOR_FRAME_NAME),
@@ -455,28 +462,30 @@ class JointPathChecker:
         None)`` when nothing is shared. Shared means equal to the bit: the samples up to
         the checkpoint's critical configuration (the steps before it interpolate only
         those) and the critical indices up to it, with as many critical configurations."""
-        key = q_start.tobytes()
         best, best_point = None, None
-        for record in self._follows:
-            if record.q_start != key or len(record.critical_indices) != len(critical_indices):
+        for record in self._follows.get(q_start.tobytes(), ()):
+            if len(record.critical_indices) != len(critical_indices):
                 continue
-            if record.critical_indices == critical_indices and _same_rows(record.times, times, len(times)) \
-                    and _same_rows(record.poses, poses, len(poses)):
+            shared = min(_equal_rows(record.times, times), _equal_rows(record.poses, poses))
+            if record.critical_indices == critical_indices and shared == len(times) == len(record.times):
                 return record, None
             for c in sorted(record.checkpoints, reverse=True):
                 if best_point is not None and c <= best_point.con:
                     break
-                rows = critical_indices[c] + 1
-                if record.critical_indices[:c + 1] == critical_indices[:c + 1] \
-                        and _same_rows(record.times, times, rows) and _same_rows(record.poses, poses, rows):
+                if critical_indices[c] < shared and record.critical_indices[:c + 1] == critical_indices[:c + 1]:
                     best, best_point = record, record.checkpoints[c]
                     break
         return best, best_point
 
     def _remember(self, record: "_FollowRecord") -> None:
-        """Keeps the last :data:`_REMEMBERED_FOLLOWS` follows (newest first)."""
-        self._follows.insert(0, record)
-        del self._follows[_REMEMBERED_FOLLOWS:]
+        """Keeps the last :data:`_REMEMBERED_FOLLOWS` follows from each of the last
+        :data:`_REMEMBERED_STARTS` starts."""
+        records = self._follows.pop(record.q_start, [])
+        records.insert(0, record)
+        del records[_REMEMBERED_FOLLOWS:]
+        self._follows[record.q_start] = records
+        while len(self._follows) > _REMEMBERED_STARTS:
+            self._follows.popitem(last=False)
 
     def _tracking_blocker(self, what: str, t: float, span: int, con: int | None = None) -> Blocker:
         """Why E fell behind: the limit that slowed the law's last step."""
