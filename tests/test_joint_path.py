@@ -118,8 +118,8 @@ def test_resuming_a_shared_prefix_gives_the_same_path():
     plan_b = _plan_through(first + [kinematics.X_WE(q_mid + s * (q_end_b - q_mid)) for s in np.linspace(0, 1, 20)[1:]],
                            [0, 19, 38])
     checker = JointPathChecker(KinematicScene())
-    checker.follow_from_candidates(plan_a, [Q_HOME], ["same", "a"])
-    resumed = checker.follow_from_candidates(plan_b, [Q_HOME], ["same", "b"])
+    checker.follow_from_candidates(plan_a, [Q_HOME])
+    resumed = checker.follow_from_candidates(plan_b, [Q_HOME])
     full = JointPathChecker(KinematicScene()).follow(plan_b, Q_HOME)
     np.testing.assert_array_equal(resumed.q, full.q)
     assert resumed.critical_errors == full.critical_errors

@@ -83,16 +83,6 @@ class ExecutableSearch:
     tried_a_start: bool = True
 
 
-def _span_keys(steps: list[Step], overrides: dict) -> list:
-    """One key per span (con to con): the step covering it, its mapping override and the
-    span's place in it; equal keys mean the same mapped motion."""
-    keys = []
-    for step in steps:
-        for offset in range(step.k - step.j):
-            keys.append((step.demo, step.j, step.k, step.a_j, step.a_k, overrides.get(step), offset))
-    return keys
-
-
 def _blocking_index(steps: list[Step], blocker: Blocker) -> int:
     """Index of the step whose span holds the blocker (its span index is 0-based, con
     to con)."""
@@ -181,8 +171,7 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
             starts = checker.start_candidates(timed.X_WE_list()[0])
             if len(starts) <= start_index:
                 return composed, None
-            path = checker.follow_from_candidates(timed, starts[start_index:start_index + 1],
-                                                  _span_keys(steps, current))
+            path = checker.follow_from_candidates(timed, starts[start_index:start_index + 1])
             return composed, dataclasses.replace(path, start_index=start_index)
 
         composed, path = check(overrides)

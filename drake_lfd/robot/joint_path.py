@@ -34,6 +34,14 @@ tries the inverse-kinematics branches of the first pose, best first, and for eac
 UR5e), shifting the start by one turn away from a limit the path ran into; the whole
 plan decides, not con_1 alone.
 
+Reuse: a checker remembers its last follows with the loop's whole state at the start of
+each span. A plan identical to one of them (times, poses, critical indices, to the bit)
+up to a critical configuration, from the same start, resumes there: the lazy search's
+next composition re-follows only the spans after the one it changed, and a trial of a
+task whose first spans do not depend on its variables only the rest. The steps before
+a critical configuration interpolate only the samples up to it, so the result is the
+full follow's, to the bit, whichever plans were followed before.
+
 Not for: choosing a composition (``planning/``), simulating the robot (``diagrams/``).
 """
 
@@ -42,6 +50,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from collections import OrderedDict
 from collections.abc import Sequence
 
 import numpy as np
@@ -195,6 +204,53 @@ def ur5e_reach_m(X_tool0_E: RigidTransform | None = None) -> float:
     return abs(_A2) + abs(_A3) + _D4 + _D5 + _D6 + tool
 
 
+# Follows a checker remembers for resuming, per start configuration (the lazy search's
+# last compositions and the previous trials' plans; each holds one path and a checkpoint
+# per critical configuration), and the starts it remembers them for (the search tries up
+# to three branches and their windings).
+_REMEMBERED_FOLLOWS = 4
+_REMEMBERED_STARTS = 16
+
+
+@dataclasses.dataclass(frozen=True)
+class _Checkpoint:
+    """The follow loop's whole state at the start of step ``k``, the first sample of the
+    span from critical configuration ``con`` (0-based)."""
+
+    con: int
+    k: int
+    q: np.ndarray
+    wake: np.ndarray
+    travel: np.ndarray
+    q_previous: tuple
+    slack: float
+    minima: tuple[float, float, float, float]  # clearance, elbow, wrist, shoulder
+    span: int
+    next_con: int
+    critical_errors: tuple
+
+
+@dataclasses.dataclass(frozen=True)
+class _FollowRecord:
+    """One follow: its start, its plan's samples, its path and its checkpoints by con."""
+
+    q_start: bytes
+    critical_indices: tuple[int, ...]
+    times: np.ndarray
+    poses: np.ndarray
+    path: "JointPath"
+    checkpoints: dict
+
+
+def _equal_rows(a: np.ndarray, b: np.ndarray) -> int:
+    """How many leading rows of the float arrays ``a`` and ``b`` are equal to the bit."""
+    rows = min(len(a), len(b))
+    if a.shape[1:] != b.shape[1:]:
+        return 0
+    differ = np.flatnonzero((a[:rows].view(np.uint64) != b[:rows].view(np.uint64)).reshape(rows, -1).any(axis=1))
+    return int(differ[0]) if len(differ) else rows
+
+
 class JointPathChecker:
     """Follows timed plans kinematically in a scene and reports the first violation.
 
@@ -219,7 +275,8 @@ class JointPathChecker:
         self.X_WB = RigidTransform() if X_WB is None else RigidTransform(X_WB)
         self.limits = limits
         self._start_cache: dict[bytes, list[np.ndarray]] = {}
-        self._path_cache: dict[bytes, tuple] = {}
+        # The last follows from each start, newest first; the starts least recently used first.
+        self._follows: OrderedDict[bytes, list[_FollowRecord]] = OrderedDict()
         plant = scene.plant
         self.law = DifferentialIKLaw(
             plant=plant, model=scene.model, frame_E=plant.GetFrameByName(END_EFFECTOR_FRAME_NAME),
@@ -263,48 +320,61 @@ class JointPathChecker:
         return cls(scene, X_WB=workcell.X_WB, table_geometry_ids=table, **kwargs)
 
     # -- one follow ----------------------------------------------------------------------
-    def follow(self, plan: TimedPlan, q_start: np.ndarray, *, resume: JointPath | None = None,
-               resume_index: int = 0) -> JointPath:
+    def follow(self, plan: TimedPlan, q_start: np.ndarray) -> JointPath:
         """Follows ``plan`` from ``q_start`` (6,); see the module docstring.
 
-        With ``resume``, a path of a plan identical up to sample ``resume_index``, that
-        prefix is kept and following starts from its sample there (the law is
-        deterministic, so the result equals a full follow).
+        A plan this checker followed before from the same start, identical (times,
+        poses, critical indices) up to one of its critical configurations, is resumed
+        from the state the loop had there (:class:`_Checkpoint`): the law is
+        deterministic, so the result equals a full follow to the bit.
         """
+        return self._follow(plan, np.array(q_start, dtype=float))
+
+    def _follow(self, plan: TimedPlan, q_start: np.ndarray) -> JointPath:
         limits, law, dt = self.limits, self.law, self.time_step
+        critical_indices = tuple(int(i) for i in plan.critical_indices)
+        plan_times, plan_poses = np.array(plan.times, dtype=float), np.array(plan.poses, dtype=float)
+        record, checkpoint = self._reusable(q_start, critical_indices, plan_times, plan_poses)
+        if checkpoint is None and record is not None:
+            return record.path  # the same plan from the same start
         trajectory = plan.to_piecewise_pose()
         velocity = trajectory.MakeDerivative()
         duration = plan.duration
-        due = [float(plan.times[i]) for i in plan.critical_indices]
-        X_cons = [RigidTransform(T) for T in matrices_from_dual_quaternion(plan.poses[list(plan.critical_indices)])]
+        due = [float(plan.times[i]) for i in critical_indices]
+        X_cons = [RigidTransform(T) for T in matrices_from_dual_quaternion(plan.poses[list(critical_indices)])]
         steps = int(math.ceil(duration / dt - 1e-9)) + limits.settle_steps
-        q = np.array(q_start, dtype=float)
-        times, path, clearances = [], [], []
-        critical_errors = []
-        next_con = 0
-        first = 0
-        if resume is not None and resume_index > 0:
-            first = resume_index
-            times, path = list(resume.t[:first]), list(resume.q[:first])
-            clearances = list(resume.clearances[:first])
-            q = resume.q[first].copy()
-            next_con = sum(1 for d in due if d < first * dt - 1e-9)
-            critical_errors = list(resume.critical_errors[:next_con])
-        wake = np.full(len(self._pairs), -np.inf)
-        travel = np.zeros(len(q))
-        q_previous = q.tolist()
-        slack = -math.inf
-        min_clearance, min_elbow, min_wrist, min_shoulder = math.inf, math.inf, math.inf, math.inf
-        if first:
-            prefix = np.array(path)
-            min_clearance = float(min(clearances, default=math.inf))
-            min_elbow = float(np.abs(np.sin(prefix[:, 2])).min())
-            min_wrist = float(np.abs(np.sin(prefix[:, 4])).min())
-            min_shoulder = min(abs(shoulder_singularity_distance(x)) for x in prefix)
+        # The loop's state at the first sample of each span (con 2 on): where a later
+        # plan sharing the prefix resumes.
+        checkpoint_at = {int(math.ceil(d / dt - 1e-9)): c for c, d in enumerate(due) if c > 0}
+        checkpoints: dict[int, _Checkpoint] = {}
+        if checkpoint is None:
+            first = 0
+            q = q_start.copy()
+            times, path, clearances, critical_errors = [], [], [], []
+            wake = np.full(len(self._pairs), -np.inf)
+            travel = np.zeros(len(q))
+            q_previous = q.tolist()
+            slack = -math.inf
+            min_clearance, min_elbow, min_wrist, min_shoulder = math.inf, math.inf, math.inf, math.inf
+            span, next_con = 0, 0
+        else:
+            first = checkpoint.k
+            old = record.path
+            times, path, clearances = list(old.t[:first]), list(old.q[:first]), list(old.clearances[:first])
+            critical_errors = list(checkpoint.critical_errors)
+            q, wake, travel = checkpoint.q.copy(), checkpoint.wake.copy(), checkpoint.travel.copy()
+            q_previous, slack = list(checkpoint.q_previous), checkpoint.slack
+            min_clearance, min_elbow, min_wrist, min_shoulder = checkpoint.minima
+            span, next_con = checkpoint.span, checkpoint.next_con
+            checkpoints = {c: point for c, point in record.checkpoints.items() if c <= checkpoint.con}
         blocker = None
-        span = 0
         lower, upper = self._lower.tolist(), self._upper.tolist()
         for k in range(first, steps + 1):
+            if k in checkpoint_at and k > first:
+                c = checkpoint_at[k]
+                checkpoints[c] = _Checkpoint(c, k, q.copy(), wake.copy(), travel.copy(), tuple(q_previous), slack,
+                                             (min_clearance, min_elbow, min_wrist, min_shoulder), span, next_con,
+                                             tuple(critical_errors))
             t = k * dt
             times.append(t)
             path.append(q.copy())
@@ -380,8 +450,42 @@ class JointPathChecker:
                 blocker = Blocker("joint_limit", f"{UR5E_JOINT_NAMES[outside[0]]} reaches its limit", t, span)
                 break
         clearances += [math.inf] * (len(times) - len(clearances))  # a sample stopped before its check
-        return JointPath(np.array(times), np.array(path), blocker, tuple(critical_errors),
-                         min_clearance, min_elbow, min_wrist, min_shoulder, clearances=np.array(clearances))
+        result = JointPath(np.array(times), np.array(path), blocker, tuple(critical_errors),
+                           min_clearance, min_elbow, min_wrist, min_shoulder, clearances=np.array(clearances))
+        self._remember(_FollowRecord(q_start.tobytes(), critical_indices, plan_times, plan_poses, result, checkpoints))
+        return result
+
+    def _reusable(self, q_start, critical_indices, times, poses):
+        """The remembered follow from ``q_start`` sharing the longest prefix with the
+        plan (``critical_indices``, ``times`` (n,), ``poses`` (n, 8)), and the checkpoint
+        to resume it from: ``(record, None)`` when the whole plan is the same, ``(None,
+        None)`` when nothing is shared. Shared means equal to the bit: the samples up to
+        the checkpoint's critical configuration (the steps before it interpolate only
+        those) and the critical indices up to it, with as many critical configurations."""
+        best, best_point = None, None
+        for record in self._follows.get(q_start.tobytes(), ()):
+            if len(record.critical_indices) != len(critical_indices):
+                continue
+            shared = min(_equal_rows(record.times, times), _equal_rows(record.poses, poses))
+            if record.critical_indices == critical_indices and shared == len(times) == len(record.times):
+                return record, None
+            for c in sorted(record.checkpoints, reverse=True):
+                if best_point is not None and c <= best_point.con:
+                    break
+                if critical_indices[c] < shared and record.critical_indices[:c + 1] == critical_indices[:c + 1]:
+                    best, best_point = record, record.checkpoints[c]
+                    break
+        return best, best_point
+
+    def _remember(self, record: "_FollowRecord") -> None:
+        """Keeps the last :data:`_REMEMBERED_FOLLOWS` follows from each of the last
+        :data:`_REMEMBERED_STARTS` starts."""
+        records = self._follows.pop(record.q_start, [])
+        records.insert(0, record)
+        del records[_REMEMBERED_FOLLOWS:]
+        self._follows[record.q_start] = records
+        while len(self._follows) > _REMEMBERED_STARTS:
+            self._follows.popitem(last=False)
 
     def _tracking_blocker(self, what: str, t: float, span: int, con: int | None = None) -> Blocker:
         """Why E fell behind: the limit that slowed the law's last step."""
@@ -435,14 +539,14 @@ class JointPathChecker:
             self._start_cache[key] = [c.q for c in found if c.collision_free and c.min_distance_m >= clearance]
         return self._start_cache[key]
 
-    def follow_from_candidates(self, plan: TimedPlan, starts: Sequence[np.ndarray],
-                               span_keys: Sequence | None = None, *, max_starts: int = 3) -> JointPath:
+    def follow_from_candidates(self, plan: TimedPlan, starts: Sequence[np.ndarray], *,
+                               max_starts: int = 3) -> JointPath:
         """The first executable path over the first ``max_starts`` start candidates and
         their windings, else the path of the first candidate (its blocker says why).
 
-        ``span_keys`` (one hashable per span, equal for spans that are the same motion)
-        lets a later call reuse the joint path of the spans its plan shares, from the
-        start, with the previous call's (lazy search re-checks only what changed).
+        A plan sharing a prefix with one followed before (the lazy search's next
+        composition, the previous trial's plan) resumes where they part
+        (:meth:`follow`).
         """
         first = None
         for index, q_start in enumerate(starts[:max_starts]):
@@ -450,7 +554,7 @@ class JointPathChecker:
             q0 = np.array(q_start, dtype=float)
             for _ in range(3):
                 tried.append(q0)
-                path = dataclasses.replace(self._follow_reusing(plan, q0, span_keys), start_index=index)
+                path = dataclasses.replace(self.follow(plan, q0), start_index=index)
                 if first is None:
                     first = path
                 if path.executable:
@@ -460,29 +564,6 @@ class JointPathChecker:
                     break
                 q0 = q_next
         return first
-
-    def _follow_reusing(self, plan: TimedPlan, q0: np.ndarray, span_keys) -> JointPath:
-        key = np.ascontiguousarray(q0).tobytes()
-        resume, resume_index = None, 0
-        previous = self._path_cache.get(key) if span_keys is not None else None
-        if previous is not None:
-            old_keys, old_path, old_due = previous
-            same = 0
-            while same < min(len(old_keys), len(span_keys)) and old_keys[same] == span_keys[same]:
-                same += 1
-            if same:
-                # Resume at the first sample of span ``same`` (the arm is at rest at the
-                # critical configuration that starts it), if the old path got there.
-                due = float(plan.times[plan.critical_indices[same]])
-                if abs(due - old_due[same]) < 1e-12:
-                    index = int(math.ceil(due / self.time_step - 1e-9))
-                    if index < len(old_path.t) - 1:
-                        resume, resume_index = old_path, index
-        path = self.follow(plan, q0, resume=resume, resume_index=resume_index)
-        if span_keys is not None:
-            due_all = [float(plan.times[i]) for i in plan.critical_indices]
-            self._path_cache[key] = (tuple(span_keys), path, due_all)
-        return path
 
     def _rewound(self, path: JointPath, q0: np.ndarray) -> np.ndarray | None:
         """The start turned by 2 pi on a joint whose limit blocked the path, away from

@@ -24,6 +24,11 @@ a slow geometric pass). :func:`time_joint_path` gives that path its executed tim
    path (a demonstration's own corners) slow the motion as the limits require.
    Velocity is continuous everywhere: it is zero where pieces join.
 
+A piece's timing is remembered by its exact inputs (its recorded samples, its critical
+ones, the options, the arm and its limits; :mod:`~drake_lfd.core.exact_memo`): trials of
+a task that share a piece (every assembling trial, the first spans of filling and
+pouring) time it once per process, with the result timing it again would give.
+
 The result is sampled at the controller period, with the exact time each critical
 configuration is reached added as a sample (the tool passes a non-stop configuration at
 speed: the plan must say where it is due, not round it to a step).
@@ -48,16 +53,25 @@ from pydrake.multibody.optimization import CalcGridPointsOptions, Toppra
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
+from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.timing import TimedPlan, TimingLimits
 from drake_lfd.robot.joint_path import JointPath
 from drake_lfd.robot.kinematics import UR5eKinematics
 
 __all__ = ["PathTimingOptions", "TimedJointPath", "TimingError", "time_joint_path", "retime_plan",
-           "corner_samples"]
+           "corner_samples", "forget_timed_pieces"]
 
 
 # Longest time a piece between stops may take; Toppra's answer beyond it is refused.
 _LONGEST_PIECE_S = 3600.0
+# Timed pieces remembered by their exact inputs (a few plans' worth; process-local).
+_PIECES = ExactMemo(maxsize=32)
+
+
+def forget_timed_pieces() -> None:
+    """Forgets the remembered timed pieces (a process that timed nothing yet; the
+    results are the same either way, only slower)."""
+    _PIECES.clear()
 
 
 class TimingError(RuntimeError):
@@ -183,6 +197,14 @@ class _PieceTimer:
         self.tool_acceleration = None if limits.tool_acceleration_m_s2 is None else \
             f * limits.tool_acceleration_m_s2 / math.sqrt(3.0)
 
+    @property
+    def key(self) -> tuple:
+        """What a piece's timing depends on besides the piece: the arm (its base and E)
+        and the limits."""
+        k = self.kinematics
+        return exact_key(k.X_WB.GetAsMatrix34(), k.X_tool0_E.GetAsMatrix34(), self.v, self.a,
+                         self.tool_speed, self.tool_acceleration)
+
     def solve(self, path: PiecewisePolynomial) -> PiecewisePolynomial | None:
         """s(t), or None when Toppra finds none (its own error line is silenced: the
         caller tries another fit or reports)."""
@@ -216,13 +238,20 @@ def _tool_deviation(kinematics: UR5eKinematics, path: PiecewisePolynomial, s: np
                     stride: int = 3) -> float:
     idx = np.arange(0, len(s), stride)
     recorded = kinematics.X_WE_batch(q[idx])[:, :3, 3]
-    fitted = kinematics.X_WE_batch(np.array([path.value(x)[:, 0] for x in s[idx]]))[:, :3, 3]
+    fitted = kinematics.X_WE_batch(path.vector_values(s[idx]).T)[:, :3, 3]
     return float(np.linalg.norm(recorded - fitted, axis=1).max(initial=0.0))
 
 
 def _fit_and_time(kinematics, timer, s, q, required, options) -> tuple[PiecewisePolynomial, PiecewisePolynomial, float]:
     """The smoothest candidate spline that keeps to the recorded tool path and that
-    Toppra can time: ``(path, s_of_t, deviation)``."""
+    Toppra can time: ``(path, s_of_t, deviation)``; remembered by its exact inputs
+    (:data:`_PIECES`: trials of a task share pieces; the result is the same either way)."""
+    key = exact_key(s, q, tuple(int(i) for i in required), options, timer.key)
+    return _PIECES.get(key, lambda: _fit_and_time_afresh(kinematics, timer, s, q, required, options))
+
+
+def _fit_and_time_afresh(kinematics, timer, s, q, required, options):
+    """:func:`_fit_and_time` without the memo."""
     step = options.knot_step_rad
     for candidate in (step, step / 2.0, step / 4.0, None):
         path = _spline(s, q, required, candidate)
@@ -287,8 +316,10 @@ def time_joint_path(
     # configuration); a critical configuration is the last kept sample at or before it.
     keep, critical_kept = [0], []
     critical_set = set(critical)
+    # Moves of more than twice the threshold from the sample before need no exact test.
+    clearly_moving = (np.abs(np.diff(q, axis=0)).max(axis=1) > 2e-7).tolist()
     for k in range(len(q)):
-        if k > 0 and np.linalg.norm(q[k] - q[keep[-1]]) > 1e-7:
+        if k > 0 and ((keep[-1] == k - 1 and clearly_moving[k - 1]) or np.linalg.norm(q[k] - q[keep[-1]]) > 1e-7):
             keep.append(k)
         if k in critical_set:
             critical_kept.append(len(keep) - 1)
@@ -332,24 +363,29 @@ def time_joint_path(
     positions, velocities = np.empty((len(t_all), 6)), np.zeros((len(t_all), 6))
     starts = np.array([piece[0] for piece in pieces])
     exact = {round(t, 9): index for index, t in con_time.items()}
-    for k, t in enumerate(t_all):
-        which = max(int(np.searchsorted(starts, t + 1e-12, side="right")) - 1, 0)
-        piece_start, duration, s_of_t, path, first = pieces[which]
-        index = exact.get(round(float(t), 9))
-        if index is not None:  # exactly the recorded configuration
-            positions[k] = q_kept[index]
-            if s_of_t is not None and 0.0 < t - piece_start < duration:
-                tau = t - piece_start
-                velocities[k] = path.EvalDerivative(s[index] - s[first], 1)[:, 0] * s_of_t.EvalDerivative(tau, 1)[0, 0]
-            continue
+    which = np.maximum(np.searchsorted(starts, t_all + 1e-12, side="right") - 1, 0)
+    exact_index = np.array([exact.get(round(float(t), 9), -1) for t in t_all])
+    for number, (piece_start, duration, s_of_t, path, first) in enumerate(pieces):
+        # The piece's samples: its path at s(t), the joints' velocity dq/ds * ds/dt inside it.
+        mine = np.flatnonzero((which == number) & (exact_index < 0))
         if s_of_t is None:
-            positions[k] = q_kept[first]
+            positions[mine] = q_kept[first]
             continue
-        tau = min(max(t - piece_start, 0.0), duration)
-        x = float(np.clip(s_of_t.value(tau)[0, 0], 0.0, path.end_time()))
-        positions[k] = path.value(x)[:, 0]
-        if 0.0 < tau < duration:
-            velocities[k] = path.EvalDerivative(x, 1)[:, 0] * s_of_t.EvalDerivative(tau, 1)[0, 0]
+        tau = np.minimum(np.maximum(t_all[mine] - piece_start, 0.0), duration)
+        x = np.clip(s_of_t.vector_values(tau)[0], 0.0, path.end_time())
+        positions[mine] = path.vector_values(x).T
+        moving = (0.0 < tau) & (tau < duration)
+        velocities[mine[moving]] = (path.derivative(1).vector_values(x[moving])
+                                    * s_of_t.derivative(1).vector_values(tau[moving])[0]).T
+    for k in np.flatnonzero(exact_index >= 0).tolist():
+        # Exactly the recorded configuration, at the speed the timing passes it.
+        index = int(exact_index[k])
+        piece_start, duration, s_of_t, path, first = pieces[which[k]]
+        positions[k] = q_kept[index]
+        t = float(t_all[k])
+        if s_of_t is not None and 0.0 < t - piece_start < duration:
+            tau = t - piece_start
+            velocities[k] = path.EvalDerivative(s[index] - s[first], 1)[:, 0] * s_of_t.EvalDerivative(tau, 1)[0, 0]
     indices = tuple(int(np.argmin(np.abs(t_all - con_time[c]))) for c in critical_kept)
     corner_cons = tuple(i + 1 for i, c in enumerate(critical_kept) if c in corners)
     return TimedJointPath(t_all, positions, velocities, indices, tuple(stop_flags), corner_cons, max_deviation)
@@ -400,9 +436,8 @@ def _carried_over(values: np.ndarray, q_old: np.ndarray, old_critical: Sequence[
     for (a_old, b_old), (a_new, b_new) in zip(zip(old_critical[:-1], old_critical[1:]),
                                               zip(new_critical[:-1], new_critical[1:])):
         length_old, length_new = s_old[b_old] - s_old[a_old], s_new[b_new] - s_new[a_new]
-        for k in range(a_new, b_new + 1):
-            fraction = 0.0 if length_new <= 0 else (s_new[k] - s_new[a_new]) / length_new
-            target = s_old[a_old] + fraction * length_old
-            j = int(np.clip(np.searchsorted(s_old, target), a_old, b_old))
-            out[k] = values[j]
+        k = np.arange(a_new, b_new + 1)
+        fraction = np.zeros(len(k)) if length_new <= 0 else (s_new[k] - s_new[a_new]) / length_new
+        target = s_old[a_old] + fraction * length_old
+        out[k] = values[np.clip(np.searchsorted(s_old, target), a_old, b_old)]
     return out
