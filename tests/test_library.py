@@ -5,6 +5,7 @@ import hashlib
 import json
 import math
 import os
+import sqlite3
 
 import numpy as np
 import pytest
@@ -43,6 +44,24 @@ def tree_digest(root):
     return digest.hexdigest()
 
 
+def cache_rows(root):
+    """Name -> the feature cache's row (name, sha256 of the log, feature key, deltas blob)."""
+    path = root / "cache" / "features.sqlite"
+    if not path.exists():
+        return {}
+    with sqlite3.connect(path) as connection:
+        rows = connection.execute("SELECT name, sha256, feature_key, deltas FROM demos").fetchall()
+    connection.close()
+    return {row[0]: row for row in rows}
+
+
+def spoil_cache_row(root, name, **columns):
+    with sqlite3.connect(root / "cache" / "features.sqlite") as connection:
+        for column, value in columns.items():
+            connection.execute(f"UPDATE demos SET {column} = ? WHERE name = ?", (value, name))
+    connection.close()
+
+
 @pytest.fixture
 def library(tmp_path):
     dut = mut.Library.create(tmp_path / "lib", X_tool0_E=X_TOOL0_E)
@@ -76,7 +95,7 @@ def test_add_then_open_round_trips(library, tmp_path):
 
 def test_features_recomputed_from_logs_equal_cached(library, tmp_path):
     root = tmp_path / "lib"
-    assert (root / "cache" / "pour.npz").is_file()
+    assert sorted(cache_rows(root)) == ["pour", "screw_cw"]
     cached = mut.Library.open(root).feature("pour")
     # Independently: FK of the log with the library's frame, then Feature.from_poses.
     kinematics = UR5eKinematics(X_tool0_E=X_TOOL0_E)
@@ -90,25 +109,33 @@ def test_features_recomputed_from_logs_equal_cached(library, tmp_path):
 
 def test_stale_or_missing_cache_is_recomputed_and_rewritten(library, tmp_path):
     root = tmp_path / "lib"
-    cache = root / "cache" / "pour.npz"
+    cache = root / "cache" / "features.sqlite"
     reference = np.array(mut.Library.open(root).feature("pour").deltas)
-    fresh = cache.read_bytes()
-    cache.write_bytes(b"garbage")
+    fresh = cache_rows(root)
+    # A damaged row (its arrays are not a feature) is recomputed, and rewritten on request.
+    spoil_cache_row(root, "pour", deltas=b"garbage")
     dut = mut.Library.open(root)
     np.testing.assert_array_equal(dut.feature("pour").deltas, reference)
-    assert cache.read_bytes() == b"garbage"  # reading writes nothing
+    assert cache_rows(root)["pour"][3] == b"garbage"  # reading writes nothing
     assert dut.write_feature_caches() == ("pour",)
-    assert cache.read_bytes() == fresh
-    assert dut.write_feature_caches() == ()  # fresh caches are left alone
-    # A cache whose key does not match (another log) is not trusted.
-    cache.write_bytes((root / "cache" / "screw_cw.npz").read_bytes())
+    assert cache_rows(root) == fresh
+    assert dut.write_feature_caches() == ()  # fresh rows are left alone
+    assert mut.Library.open(root).write_feature_caches() == ()
+    # A row whose key does not match (another log's feature) is not trusted.
+    screw = cache_rows(root)["screw_cw"]
+    spoil_cache_row(root, "pour", feature_key=screw[2], deltas=screw[3])
     np.testing.assert_array_equal(mut.Library.open(root).feature("pour").deltas, reference)
-    cache.unlink()
-    dut = mut.Library.open(root)
-    np.testing.assert_array_equal(dut.feature("pour").deltas, reference)
-    assert not cache.exists()
-    assert dut.write_feature_caches() == ("pour",)
-    assert cache.read_bytes() == fresh
+    # A file that is not a database, or none at all: every feature recomputed, nothing written.
+    for damage in ("garbage", "delete"):
+        if damage == "garbage":
+            cache.write_bytes(b"garbage")
+        else:
+            cache.unlink()
+        dut = mut.Library.open(root)
+        np.testing.assert_array_equal(dut.feature("pour").deltas, reference)
+        assert cache.exists() == (damage == "garbage")
+        assert dut.write_feature_caches() == ("screw_cw", "pour")
+        assert cache_rows(root) == fresh
 
 
 def test_reading_a_library_writes_nothing(library, tmp_path):
@@ -140,7 +167,7 @@ def test_remove_updates_manifest_and_deletes_log(library, tmp_path):
     assert library.names == ("pour",)
     assert mut.Library.open(root).names == ("pour",)
     assert not (root / "demos" / "screw_cw.csv").exists()
-    assert not (root / "cache" / "screw_cw.npz").exists()
+    assert sorted(cache_rows(root)) == ["pour"]
     with pytest.raises(InputError, match="no demonstration 'screw_cw'"):
         library.remove("screw_cw")
 

@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime
+import hashlib
 import math
 import os
 import shutil
@@ -87,7 +88,17 @@ from drake_lfd.io.demonstration_logs import (
     read_rtde_csv,
     rtde_csv_text,
 )
-from drake_lfd.io.feature_cache import cache_key, read_feature_cache, write_feature_cache
+from drake_lfd.io.feature_cache import (
+    CACHE_NAME,
+    JOURNAL_SUFFIX,
+    CacheRow,
+    cache_key,
+    delete_rows,
+    log_stamp,
+    read_features,
+    read_rows,
+    write_rows,
+)
 from drake_lfd.io.file_lock import LockUnavailable, exclusive_lock, shared_lock
 from drake_lfd.io.library_manifest import (
     CACHE_DIRECTORY,
@@ -144,15 +155,22 @@ def _temporaries(directory):
     for sub in (DEMOS_DIRECTORY, CACHE_DIRECTORY):
         if (directory / sub).is_dir():
             found += [p for p in (directory / sub).glob(".*.tmp") if p.is_file()]
+    journal = directory / CACHE_DIRECTORY / (CACHE_NAME + JOURNAL_SUFFIX)
+    if journal.is_file():
+        found.append(journal)
     return found
 
 
 def remove_stale_temporaries(directory):
     """Deletes the temporary files (``.*.tmp``) that writers killed mid-write left in a
     library directory; call with the library's lock held (then no write is under way).
-    Returns the paths deleted."""
+    A feature cache's rollback journal is left to SQLite: the next write of the cache
+    rolls it back and deletes it (:mod:`~drake_lfd.io.feature_cache`). Returns the paths
+    deleted."""
     removed = []
     for path in _temporaries(directory):
+        if path.name.endswith(JOURNAL_SUFFIX):
+            continue
         try:
             path.unlink()
             removed.append(path)
@@ -197,8 +215,12 @@ def _writing(directory, label):
         yield
 
 
-def _check_logs(directory, manifest):
-    """Each entry against its log: present, same sample count and duration."""
+def _check_logs(directory, manifest, rows):
+    """Each entry against its log: present, same sample count and duration.
+
+    A log whose stamp (size, modification and change time, inode) is its cache row's is
+    the file the row was read from, so the row's sample count and duration are the
+    log's and the log is not read again; any other log is read and summarised."""
     manifest_path = Path(directory) / MANIFEST_NAME
     for index, entry in enumerate(manifest.entries):
         log = Path(directory) / entry.file
@@ -207,15 +229,18 @@ def _check_logs(directory, manifest):
             f"restore the log, or drop the entry with 'drake-lfd library remove {directory} {entry.name}' "
             "and add the demonstration again"
         )
+        row = rows.get(entry.name)
         try:
-            log_bytes = log.read_bytes()
+            if row is not None and row.stamp == log_stamp(log):
+                samples, duration_s = row.samples, row.duration_s
+            else:
+                samples, duration_s = log_sample_summary(log.read_bytes(), log)
         except FileNotFoundError:
             raise InputError(
                 f"the joint log {entry.file} is missing; {remedy}", file=manifest_path, field=f"{field}.file"
             ) from None
         except OSError as error:
             raise InputError(f"cannot read the joint log: {error.strerror}", file=log) from None
-        samples, duration_s = log_sample_summary(log_bytes, log)
         if samples != entry.samples:
             raise InputError(
                 f"is {entry.samples} but the joint log {entry.file} has {samples} samples "
@@ -313,12 +338,25 @@ def tool_frame_options(X_tool0_E):
 
 
 class _FeatureRecord(NamedTuple):
-    """A demonstration's feature, the cache key it belongs to, and whether a cache file
-    with that key is on disk."""
+    """A demonstration's feature, the cache key it belongs to, whether the cache holds it
+    for the log as it is (``on_disk``), and the row that stores it."""
 
     key: str
     feature: Feature
     on_disk: bool
+    row: CacheRow | None  # None: the log changed while it was read (nothing to store)
+
+
+class _LogIdentity(NamedTuple):
+    """What a joint log is now: its stamp, sha256, sample count and duration, and its
+    bytes when they had to be read (None when its cache row vouches for it)."""
+
+    stamp: object
+    sha256: str
+    samples: int
+    duration_s: float
+    log_bytes: bytes | None
+    steady: bool  # False: the log changed while it was read
 
 
 class Library:
@@ -357,6 +395,13 @@ class Library:
         self.rotation_length_m = float(rotation_length_m)
         self._features = {}  # name -> _FeatureRecord
         self._kinematics = None  # built on first use, for X_tool0_E
+        self._rows = {}  # name -> CacheRow, the feature cache's rows as read (or written) by this object
+        self._positions = {}  # name -> index into the manifest's entries
+        self._set_manifest(manifest)
+
+    def _set_manifest(self, manifest):
+        self._manifest = manifest
+        self._positions = {entry.name: index for index, entry in enumerate(manifest.entries)}
 
     # -- opening ---------------------------------------------------------------------
     @classmethod
@@ -409,15 +454,18 @@ class Library:
         # The shared lock keeps writers out while the manifest and the logs are compared.
         with shared_lock(Path(directory) / LOCK_NAME):
             manifest = read_manifest(directory, check_logs=check_logs)
+            rows = read_rows(Path(directory) / CACHE_DIRECTORY / CACHE_NAME)
             if check_logs:
-                _check_logs(directory, manifest)
-        return cls(
+                _check_logs(directory, manifest, rows)
+        library = cls(
             path=directory,
             manifest=manifest,
             label=label,
             read_only=read_only,
             **feature_parameters,
         )
+        library._rows = rows
+        return library
 
     @classmethod
     def create(cls, path, X_tool0_E=None, **feature_parameters):
@@ -544,14 +592,15 @@ class Library:
         return len(self._manifest.entries)
 
     def __contains__(self, name):
-        return any(entry.name == name for entry in self._manifest.entries)
+        return name in self._positions
 
     def entry(self, name):
         """The :class:`DemoEntry` of ``name``; InputError listing the names if absent."""
-        for entry in self._manifest.entries:
-            if entry.name == name:
-                return entry
-        known = ", ".join(self.names) or "none"
+        position = self._positions.get(name)
+        if position is not None:
+            return self._manifest.entries[position]
+        names = self.names
+        known = ", ".join(names[:20]) + (f" and {len(names) - 20} more" if len(names) > 20 else "") or "none"
         raise InputError(f"no demonstration {name!r} (it has: {known})", file=self.label, field="name")
 
     def log_path(self, name):
@@ -581,10 +630,33 @@ class Library:
         return demonstration
 
     def feature(self, name):
-        """The feature ``HD`` of ``name`` (arc-length resampled, Eq. 12): from its cache file
-        when that is fresh, else recomputed from the joint log. Writes nothing (see
-        :meth:`write_feature_caches`)."""
-        return self._feature_record(name).feature
+        """The feature ``HD`` of ``name`` (arc-length resampled, Eq. 12): from the feature
+        cache when it holds it for the log as it is, else recomputed from the joint log.
+        Writes nothing (see :meth:`write_feature_caches`)."""
+        return self._feature_records([name])[name].feature
+
+    def features(self, names=None):
+        """Name -> feature of ``names`` (default: every demonstration, in the library's
+        order), as :meth:`feature` gives them, read from the cache in one query; writes
+        nothing."""
+        names = self.names if names is None else tuple(names)
+        records = self._feature_records(names)
+        return {name: records[name].feature for name in names}
+
+    def feature_parts(self, parts, names=None):
+        """Name -> {part: array} of some of each feature's arrays (``rotations``,
+        ``translations``, ``deltas``, ``poses``), read-only: for a listing that needs
+        a few numbers of every feature without building them all. Falls back to the
+        whole :meth:`feature` for a demonstration the cache does not hold."""
+        names = self.names if names is None else tuple(names)
+        identities = {name: self._log_identity(name) for name in names}
+        wanted = {name: self._key(identity.sha256) for name, identity in identities.items()}
+        found = read_features(self._cache_path(), wanted, parts)
+        for name in names:
+            if name not in found:
+                feature = self.feature(name)
+                found[name] = {part: getattr(feature, part) for part in parts}
+        return {name: found[name] for name in names}
 
     def resampled_poses(self, name):
         """The arc-length resampled end-effector poses of ``name`` as dual quaternions,
@@ -592,59 +664,96 @@ class Library:
         mapping (Eq. 22-25) index into."""
         return self.feature(name).poses
 
-    def cache_path(self, name):
-        """Where the feature cache of ``name`` lives (it may not exist)."""
-        return self.path / CACHE_DIRECTORY / f"{name}.npz"
+    def _cache_path(self):
+        return self.path / CACHE_DIRECTORY / CACHE_NAME
 
     def write_feature_caches(self):
-        """Writes the cache file of every demonstration whose cache is missing or stale.
+        """Stores in the feature cache every feature it lacks for the logs as they are.
 
-        Reading never writes; ``add`` writes the new demonstration's cache, and the
-        command line calls this before using a library, so a user's library keeps
-        fresh caches. A read-only (bundled) library keeps no caches: nothing is written.
-        A cache that cannot be written is skipped (it is an optimisation).
+        Reading never writes; ``add`` stores the new demonstration's feature, and the
+        command line calls this before using a library, so a user's library keeps a
+        fresh cache (rows of demonstrations no longer listed, and the per-demonstration
+        ``cache/NAME.npz`` files of older drake-lfd versions, are deleted too). A
+        read-only (bundled) library keeps no cache: nothing is written. A cache that
+        cannot be written is skipped (it is an optimisation).
 
         Returns
         -------
         names : tuple of str
-            The demonstrations whose cache file was written.
+            The demonstrations whose cache row was written.
         """
         if self.read_only:
             return ()
-        missing = []
-        for name in self.names:
-            record = self._feature_record(name)  # computed outside the lock
-            if not (record.on_disk and self.cache_path(name).is_file()):
-                missing.append((name, record))
+        records = self._feature_records(self.names)  # computed outside the lock
+        missing = [(name, records[name]) for name in self.names if not records[name].on_disk and records[name].row]
+        listed = set(self.names)
+        unlisted = [name for name in self._rows if name not in listed]
+        legacy = [p for p in (self.path / CACHE_DIRECTORY).glob("*.npz") if p.stem in listed]
+        if not (missing or unlisted or legacy):
+            return ()
         written = []
         try:
             with _writing(self.path, self.label):
-                for name, record in missing:
-                    if write_feature_cache(self.cache_path(name), record.key, record.feature):
+                if missing and write_rows(self._cache_path(), [(record.row, record.feature) for _, record in missing]):
+                    for name, record in missing:
                         self._features[name] = record._replace(on_disk=True)
+                        self._rows[name] = record.row
                         written.append(name)
+                if unlisted and delete_rows(self._cache_path(), unlisted):
+                    for name in unlisted:
+                        self._rows.pop(name, None)
+                for path in legacy:
+                    with contextlib.suppress(OSError):
+                        path.unlink()
         except InputError:  # the lock cannot be taken (read-only directory): no caches
             return ()
         return tuple(written)
 
-    def _feature_record(self, name):
-        entry = self.entry(name)
-        log = self.path / entry.file
+    def _key(self, sha256):
+        return cache_key(sha256, self.X_tool0_E, self.num_samples, self.rotation_length_m)
+
+    def _log_identity(self, name):
+        """The :class:`_LogIdentity` of ``name``'s log: from its cache row when the log's
+        stamp is the row's, else by reading the log."""
+        log = self.path / self.entry(name).file
         try:
+            stamp = log_stamp(log)
+            row = self._rows.get(name)
+            if row is not None and row.stamp == stamp:
+                return _LogIdentity(stamp, row.sha256, row.samples, row.duration_s, None, True)
             log_bytes = log.read_bytes()
+            steady = log_stamp(log) == stamp
         except OSError as error:
             raise InputError(f"cannot read the joint log: {error.strerror}", file=log) from None
-        key = cache_key(log_bytes, self.X_tool0_E, self.num_samples, self.rotation_length_m)
-        memo = self._features.get(name)
-        if memo is not None and memo.key == key:
-            return memo
-        feature = read_feature_cache(self.cache_path(name), key)
-        if feature is not None:
-            record = _FeatureRecord(key, feature, on_disk=True)
-        else:
-            record = _FeatureRecord(key, self._compute_feature(self.demonstration(name)), on_disk=False)
-        self._features[name] = record
-        return record
+        samples, duration_s = log_sample_summary(log_bytes, log)
+        return _LogIdentity(stamp, hashlib.sha256(log_bytes).hexdigest(), samples, duration_s, log_bytes, steady)
+
+    def _feature_records(self, names):
+        """Name -> :class:`_FeatureRecord` of ``names``: memoised, else from the cache (one
+        query for all), else computed from the log."""
+        records, wanted, identities = {}, {}, {}
+        for name in names:
+            identity = self._log_identity(name)
+            key = self._key(identity.sha256)
+            memo = self._features.get(name)
+            if memo is not None and memo.key == key:
+                records[name] = memo
+            else:
+                wanted[name], identities[name] = key, identity
+        stored = read_features(self._cache_path(), wanted) if wanted else {}
+        for name, key in wanted.items():
+            identity = identities[name]
+            row = None
+            if identity.steady:
+                row = CacheRow(name, identity.stamp, identity.sha256, identity.samples, identity.duration_s, key)
+            feature = stored.get(name)
+            if feature is None:
+                feature = self._compute_feature(self.demonstration(name))
+            on_disk = name in stored and self._rows.get(name) == row
+            record = _FeatureRecord(key, feature, on_disk, row)
+            self._features[name] = record
+            records[name] = record
+        return records
 
     def _dual_quaternions(self, demonstration):
         """Raw poses of E in the base frame (``X_WB`` = identity), shape (m, 8)."""
@@ -695,49 +804,112 @@ class Library:
             demonstration (:func:`~drake_lfd.io.demonstration_logs.check_plausible_motion`),
             or one that does not move. The library is unchanged then.
         """
+        pending = self.prepare(demonstration, name, description, source=source)
+        added, refused = self.add_prepared([pending])
+        if refused:
+            raise refused[0][1]
+        return added[0]
+
+    def prepare(self, demonstration, name, description="", *, source=None):
+        """Every check of a new demonstration that does not depend on what the library
+        holds, and its feature: what :meth:`add_prepared` writes. Writes nothing.
+
+        Raises
+        ------
+        InputError
+            As :meth:`add` (read-only library, bad name, invalid demonstration).
+        """
         self._check_writable()
         if self._kinematics is None:
             self._kinematics = UR5eKinematics(X_tool0_E=self.X_tool0_E)
-        pending = _prepare(
+        return _prepare(
             demonstration, name, description, kinematics=self._kinematics, num_samples=self.num_samples,
             rotation_length_m=self.rotation_length_m, source=source, label=self.label,
         )
-        entry = pending.entry
-        log = self.path / entry.file
+
+    def add_prepared(self, pending):
+        """Adds prepared demonstrations (:meth:`prepare`) in one turn of the library's lock:
+        the manifest re-read there, the logs of those whose names are free, one manifest
+        write listing them all, then their cache rows.
+
+        Each demonstration is added whole or not at all: a crash leaves at worst logs the
+        manifest does not list (ignored, overwritten by a later add of that name).
+
+        Parameters
+        ----------
+        pending : sequence of prepared demonstrations
+
+        Returns
+        -------
+        added : list of DemoEntry
+            In the given order.
+        refused : list of (int, InputError)
+            The position in ``pending`` and why (the name is taken in the library, or
+            earlier in ``pending``, ignoring case).
+
+        Raises
+        ------
+        InputError
+            The library's lock cannot be taken, or its end-effector frame changed on
+            disk; nothing is added then.
+        """
+        self._check_writable()
+        added, refused, accepted = [], [], []
         with _writing(self.path, self.label):
             manifest = read_manifest(self.path, check_logs=False)  # what is on disk now
             if manifest.X_tool0_E_json != self._manifest.X_tool0_E_json:
                 raise InputError(
                     "the library's end-effector frame changed on disk since it was opened", file=self.label
                 )
-            for existing in manifest.entries:
-                if existing.name.lower() == name.lower():
-                    raise InputError(
-                        f"the library has a demonstration named {existing.name!r} already; "
+            taken = {existing.name.lower(): existing.name for existing in manifest.entries}
+            for position, item in enumerate(pending):
+                name = item.entry.name
+                if name.lower() in taken:
+                    refused.append((position, InputError(
+                        f"the library has a demonstration named {taken[name.lower()]!r} already; "
                         "remove it first or choose another name",
                         file=self.label,
                         field="name",
-                    )
+                    )))
+                    continue
+                taken[name.lower()] = name
+                accepted.append(item)
+            if not accepted:
+                self._set_manifest(manifest)
+                return added, refused
             _make_directory(self.path / DEMOS_DIRECTORY)
-            atomic_write_bytes(log, pending.log_bytes)
-            entries = manifest.entries + (entry,)
+            written = []
             try:
+                for item in accepted:
+                    log = self.path / item.entry.file
+                    atomic_write_bytes(log, item.log_bytes)
+                    written.append(log)
+                entries = manifest.entries + tuple(item.entry for item in accepted)
                 write_manifest(self.path, manifest.with_entries(entries))
             except BaseException:
-                # Nothing references the new log yet: take it away again.
-                try:
-                    log.unlink()
-                except OSError:
-                    pass
+                # Nothing references the new logs yet: take them away again.
+                for log in written:
+                    with contextlib.suppress(OSError):
+                        log.unlink()
                 raise
-            self._manifest = manifest.with_entries(entries)
-            key = cache_key(pending.log_bytes, self.X_tool0_E, self.num_samples, self.rotation_length_m)
-            on_disk = write_feature_cache(self.cache_path(name), key, pending.feature)
-        self._features[name] = _FeatureRecord(key, pending.feature, on_disk)
-        return entry
+            self._set_manifest(manifest.with_entries(entries))
+            rows = []
+            for item in accepted:
+                name = item.entry.name
+                with contextlib.suppress(OSError):
+                    stamp = log_stamp(self.path / item.entry.file)
+                    sha256 = hashlib.sha256(item.log_bytes).hexdigest()
+                    rows.append((CacheRow(name, stamp, sha256, item.entry.samples, item.entry.duration_s,
+                                          self._key(sha256)), item.feature))
+            on_disk = write_rows(self._cache_path(), rows)
+        for row, feature in rows:
+            self._features[row.name] = _FeatureRecord(row.feature_key, feature, on_disk, row)
+            if on_disk:
+                self._rows[row.name] = row
+        return [item.entry for item in accepted], refused
 
     def remove(self, name):
-        """Removes a demonstration: the manifest entry first, then its log and cache,
+        """Removes a demonstration: the manifest entry first, then its log and cache row,
         under the library's lock. An entry whose log is missing (or damaged) can be
         removed: that is how a library is repaired.
 
@@ -749,19 +921,21 @@ class Library:
         self._check_writable()
         with _writing(self.path, self.label):
             manifest = read_manifest(self.path, check_logs=False)  # what is on disk now
-            self._manifest = manifest
+            self._set_manifest(manifest)
             entry = self.entry(name)
             entries = [e for e in manifest.entries if e.name != name]
             write_manifest(self.path, manifest.with_entries(entries))
-            self._manifest = manifest.with_entries(entries)
+            self._set_manifest(manifest.with_entries(entries))
             self._features.pop(name, None)
-            for path in (self.path / entry.file, self.cache_path(name)):
+            for path in (self.path / entry.file, self.path / CACHE_DIRECTORY / f"{name}.npz"):
                 try:
                     path.unlink()
                 except FileNotFoundError:
                     pass
             if (self.path / DEMOS_DIRECTORY).is_dir():
                 fsync_directory(self.path / DEMOS_DIRECTORY)
+            if delete_rows(self._cache_path(), [name]):
+                self._rows.pop(name, None)
 
 
 def _remove_unused_directory(directory):
@@ -886,4 +1060,4 @@ def library_features(library: Library) -> dict[str, Feature]:
 
     What the ``plan``, ``train`` and ``simulate`` commands hand to the planners.
     """
-    return {name: library.feature(name) for name in library.names}
+    return library.features()

@@ -31,6 +31,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import re
 from pathlib import Path
 from typing import NamedTuple
@@ -150,7 +151,27 @@ def _manifest_error(problem, manifest, field=None):
     return InputError(problem, file=manifest, field=field)
 
 
-def _parse_entry(value, index, directory, manifest, check_logs):
+def _inside(directory, relative, resolved):
+    """Whether ``directory / relative`` resolves to a path inside ``directory``.
+
+    ``resolved`` memoises the resolution of the directory and of each parent folder (one
+    per library in practice), so a manifest of thousands of entries costs one
+    ``resolve`` per folder and an ``lstat`` per entry: only an entry that is itself a
+    symbolic link is resolved on its own."""
+    root = resolved.get(None)
+    if root is None:
+        root = resolved[None] = directory.resolve()
+    parent = relative.parent
+    if parent not in resolved:
+        resolved[parent] = (root / parent).resolve().is_relative_to(root)
+    if not resolved[parent]:
+        return False
+    if os.path.islink(directory / relative):
+        return (root / relative).resolve().is_relative_to(root)
+    return True
+
+
+def _parse_entry(value, index, directory, manifest, check_logs, resolved):
     field = f"demos[{index}]"
     if not isinstance(value, dict):
         raise _manifest_error("expected an object describing one demonstration", manifest, field)
@@ -169,8 +190,7 @@ def _parse_entry(value, index, directory, manifest, check_logs):
     if not isinstance(file, str) or not file:
         raise _manifest_error(f"expected a relative path, got {file!r}", manifest, f"{field}.file")
     relative = Path(file)
-    root = directory.resolve()
-    if relative.is_absolute() or ".." in relative.parts or not (root / relative).resolve().is_relative_to(root):
+    if relative.is_absolute() or ".." in relative.parts or not _inside(directory, relative, resolved):
         raise _manifest_error(
             f"{file!r} is not a path inside the library directory", manifest, f"{field}.file"
         )
@@ -246,8 +266,9 @@ def read_manifest(directory, *, check_logs=True) -> Manifest:
         raise _manifest_error("expected a list", manifest, "demos")
     entries = []
     seen = {}
+    resolved = {}
     for index, value in enumerate(data["demos"]):
-        entry = _parse_entry(value, index, directory, manifest, check_logs)
+        entry = _parse_entry(value, index, directory, manifest, check_logs, resolved)
         if entry.name.lower() in seen:
             raise _manifest_error(
                 f"name {entry.name!r} repeats demos[{seen[entry.name.lower()]}]",
