@@ -39,20 +39,25 @@ other commands (one module each in ``drake_lfd/cli``).
 
 from __future__ import annotations
 
+import glob
 import math
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from drake_lfd.core.dual_quaternion import axis_angle_from_quaternion
-from drake_lfd.core.errors import EXIT_OK, InputError
+from drake_lfd.core.errors import EXIT_BAD_INPUT, EXIT_OK, InputError
 from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
 from drake_lfd.cli.argument_checks import prepare_output
+from drake_lfd.cli.progress import ProgressBar
 from drake_lfd.io.atomic_files import atomic_write_bytes
-from drake_lfd.io.log_import import read_demonstration_log
+from drake_lfd.io.log_import import check_time_window, read_demonstration_log
+from drake_lfd.io.rosbag_logs import bag_location, is_bag
 from drake_lfd.io.library import (
     END_EFFECTOR_FRAME_TOLERANCE,
+    DemonstrationPreparer,
     Library,
     bundled_library_names,
     bundled_library_paths,
@@ -69,6 +74,8 @@ __all__ = [
     "SUMMARY_FRACTIONS",
     "add_parser",
     "run_add",
+    "run_bulk_add",
+    "find_logs",
     "feature_summary",
     "library_listing",
     "format_listing",
@@ -96,9 +103,15 @@ def add_parser(subparsers):
 
     add = actions.add_parser(
         "add",
-        help="add a demonstration (RTDE CSV joint log, or ROS 1/2 bag of sensor_msgs/JointState) to a library",
+        help="add a demonstration (RTDE CSV joint log, or ROS 1/2 bag of sensor_msgs/JointState) to a library, "
+             "or many at once",
         description=(
-            "Add a demonstration to LIB. LIB is created when it does not exist; its end-effector "
+            "Add a demonstration to LIB (DEMO --name NAME), or, without --name, every log that the DEMO "
+            "arguments name: log files, folders (their *.csv and *.bag files and ROS 2 bag directories) and "
+            "glob patterns ('logs/*.csv'), each named after its file's stem, with a progress bar; every valid "
+            "log is added, each other one refused with one line naming it and why, then one summary line "
+            "(exit 0 when all were added, 2 when any was refused). The other options apply to every log of "
+            "such a bulk add. LIB is created when it does not exist; its end-effector "
             "frame X_tool0_E must then be given with both --tool0-E-p and --tool0-E-euler-zyx "
             f"(E = tool0 is {IDENTITY_FRAME_OPTIONS}). An existing library keeps its frame."
         ),
@@ -107,11 +120,14 @@ def add_parser(subparsers):
     add.add_argument(
         "log",
         metavar="DEMO",
+        nargs="+",
         help="UR RTDE CSV joint log (actual_q_0..5, and timestamp or --rate), a ROS 1 .bag file or a ROS 2 bag "
-             "directory (sqlite3 or mcap) with sensor_msgs/JointState",
+             "directory (sqlite3 or mcap) with sensor_msgs/JointState; without --name, any number of logs, "
+             "folders of logs and glob patterns",
     )
-    add.add_argument("--name", required=True, help="demonstration name: letters, digits, '_', '-'")
-    add.add_argument("--description", default="", help="what was demonstrated")
+    add.add_argument("--name", help="demonstration name: letters, digits, '_', '-' (one DEMO); without it, "
+                                    "every log is named after its file's stem")
+    add.add_argument("--description", default="", help="what was demonstrated (bulk add: the same for every log)")
     add.add_argument(
         "--tool0-E-p",
         nargs=3,
@@ -238,6 +254,16 @@ def _is_new_library(path_text):
 
 
 def run_add(args):
+    if args.name is None:
+        return run_bulk_add(args)
+    if len(args.log) != 1:
+        raise InputError(
+            f"names one demonstration but {len(args.log)} logs were given; add one log with --name, or leave "
+            "--name out to add every log, each named after its file's stem",
+            file=args.library,
+            field="--name",
+        )
+    args.log = args.log[0]
     p, euler = _requested_tool_frame(args)
     # Everything that can refuse the add runs before the library is touched.
     new = _is_new_library(args.library)
@@ -270,6 +296,208 @@ def run_add(args):
     return EXIT_OK
 
 
+# --------------------------------------------------------------------------- bulk add
+
+# Prepared demonstrations per turn of the library's lock (each turn one manifest write):
+# other writers wait at most one batch, and a killed bulk add keeps the batches before.
+BULK_BATCH = 500
+# Suffixes of the log files a folder is searched for (ROS 2 bags are directories).
+LOG_SUFFIXES = (".csv", ".bag")
+
+# Why a log of a bulk add was refused, as the summary line counts them.
+_NOT_FOUND = "not found"
+_BAD_NAME = "file name not a demonstration name"
+_REPEATED_NAME = "name repeated in this add"
+_NAME_TAKEN = "name already in the library"
+_BAD_LOG = "log refused"
+
+
+def _logs_in_folder(folder):
+    """The logs directly in ``folder``, sorted: its *.csv and *.bag files and ROS 2 bag
+    directories."""
+    found = []
+    for child in sorted(folder.iterdir()):
+        if child.is_dir() and is_bag(child):
+            found.append(child)
+        elif child.is_file() and child.suffix.lower() in LOG_SUFFIXES and not child.name.startswith("."):
+            found.append(child)
+    return found
+
+
+def find_logs(arguments):
+    """The logs the DEMO arguments of a bulk add name, in order, each once.
+
+    Parameters
+    ----------
+    arguments : sequence of str
+        Log files (a ROS 2 bag directory counts as one), folders (their *.csv and *.bag
+        files and ROS 2 bag directories, not their subfolders) and glob patterns (``*``,
+        ``?``, ``[``; ``**`` reaches into subfolders), whose matches are taken the same way.
+
+    Returns
+    -------
+    logs : list of Path
+    missing : list of str
+        Arguments that name nothing.
+    """
+    logs, missing, seen = [], [], set()
+
+    def take(path):
+        if path.is_dir() and not is_bag(path):
+            for log in _logs_in_folder(path):
+                take(log)
+            return
+        key = os.path.realpath(path)
+        if key not in seen:
+            seen.add(key)
+            logs.append(path)
+
+    for argument in arguments:
+        path = Path(argument)
+        if path.exists():
+            take(path)
+        elif glob.has_magic(argument):
+            matches = sorted(glob.glob(argument, recursive=True))
+            for match in matches:
+                take(Path(match))
+            if not matches:
+                missing.append(argument)
+        else:
+            missing.append(argument)
+    return logs, missing
+
+
+def _log_name(path):
+    """A bulk-added log's demonstration name: its file's stem (a ROS 2 bag: its directory's
+    name)."""
+    location = bag_location(path)
+    if location is not None and location.is_dir():
+        return location.name
+    return path.stem
+
+
+def _reason(error, path):
+    """An error's text without the log's own name in front (the refusal line names it)."""
+    text = str(error)
+    prefix = f"{path}: "
+    return text[len(prefix):] if text.startswith(prefix) else text
+
+
+class _BulkAdd:
+    """The state of one bulk add: the library (None until the first log is accepted, when
+    a new one is created), what was added and refused, and the logs' messages."""
+
+    def __init__(self, args, X_tool0_E_new):
+        self.args = args
+        self.library = None if X_tool0_E_new is not None else Library.open(args.library)
+        self.X_tool0_E_new = X_tool0_E_new
+        X_tool0_E = X_tool0_E_new if self.library is None else self.library.X_tool0_E
+        label = Path(args.library).absolute() if self.library is None else self.library.label
+        self.preparer = DemonstrationPreparer(X_tool0_E, label)
+        self.added = 0
+        self.refused = []  # (path, kind, reason)
+        self.messages = []  # (stream, text): warnings and reports of the logs added
+        self.pending = []  # (path, prepared, warnings, reports)
+
+    def refuse(self, path, kind, reason):
+        self.refused.append((path, kind, reason))
+
+    def commit(self):
+        """Adds the pending demonstrations in one turn of the library's lock."""
+        if not self.pending:
+            return
+        if self.library is None:
+            self.library = Library.open_or_create(self.args.library, self.X_tool0_E_new)
+        added, refused = self.library.add_prepared([item for _, item, _, _ in self.pending])
+        taken = {position for position, _ in refused}
+        for position, error in refused:
+            self.refuse(self.pending[position][0], _NAME_TAKEN, _reason(error, self.library.label))
+        for position, (_, _, warnings, reports) in enumerate(self.pending):
+            if position not in taken:
+                self.messages += [(sys.stderr, f"drake-lfd library: warning: {warning}") for warning in warnings]
+                self.messages += [(sys.stdout, report) for report in reports]
+        self.added += len(added)
+        self.pending = []
+
+
+def run_bulk_add(args):
+    """``library add LIB DIR_OR_GLOB...`` without ``--name`` (docs/cli.rst)."""
+    p, euler = _requested_tool_frame(args)
+    new = _is_new_library(args.library)
+    X_tool0_E = _new_library_frame(args, p, euler) if new else None
+    check_time_window(args.start, args.end)
+    logs, missing = find_logs(args.log)
+    if not logs:
+        raise InputError(
+            f"found no logs in {', '.join(args.log)} (a folder's *.csv and *.bag files and ROS 2 bag directories "
+            "are added; give files, folders or glob patterns)",
+            field="DEMO",
+        )
+    bulk = _BulkAdd(args, X_tool0_E)
+    existing = set()
+    if bulk.library is not None:
+        if bulk.library.read_only:
+            bulk.library.check_writable()  # a bundled library: refused, with the hint to copy it
+        _check_same_frame(bulk.library, p, euler)
+        existing = {name.lower() for name in bulk.library.names}
+    for argument in missing:
+        bulk.refuse(argument, _NOT_FOUND, "no such file or directory, and no file matches it")
+    names = {}
+    bar = ProgressBar("adding", len(logs), quiet_unless_terminal=True)
+    for done, path in enumerate(logs, start=1):
+        _bulk_add_one(bulk, path, names, existing)
+        if len(bulk.pending) >= BULK_BATCH:
+            bulk.commit()
+        bar.update(done, f"{bulk.added + len(bulk.pending)} accepted, {len(bulk.refused)} refused")
+    bulk.commit()
+    bar.close()
+    for stream, text in bulk.messages:
+        print(text, file=stream)
+    for path, _, reason in bulk.refused:
+        print(f"drake-lfd library: refused {path}: {reason}", file=sys.stderr)
+    label = bulk.library.label if bulk.library is not None else args.library
+    summary = f"added {bulk.added} of {len(logs) + len(missing)} logs to {label}"
+    if bulk.refused:
+        counts = {}
+        for _, kind, _ in bulk.refused:
+            counts[kind] = counts.get(kind, 0) + 1
+        summary += f"; refused {len(bulk.refused)}: " + ", ".join(f"{n} {kind}" for kind, n in counts.items())
+        if bulk.library is None:
+            summary += " (no library was created)"
+    print(summary)
+    return EXIT_OK if not bulk.refused else EXIT_BAD_INPUT
+
+
+def _bulk_add_one(bulk, path, names, existing):
+    """Reads and checks one log of a bulk add; a valid one joins ``bulk.pending``."""
+    args = bulk.args
+    name = _log_name(path)
+    try:
+        check_demo_name(name)
+    except InputError as error:
+        bulk.refuse(path, _BAD_NAME, f"{error.problem}; rename the file, or add it alone with --name NAME")
+        return
+    if name.lower() in names:
+        bulk.refuse(path, _REPEATED_NAME, f"its name {name!r} is also the name of {names[name.lower()]}; "
+                                          "rename one of the files, or add it alone with --name NAME")
+        return
+    if name.lower() in existing:
+        bulk.refuse(path, _NAME_TAKEN, f"the library has a demonstration named {name!r} already; remove it "
+                                       "first, or rename the file")
+        return
+    try:
+        demonstration, warnings, reports = read_demonstration_log(
+            path, name=name, description=args.description, filter_runtime_state=not args.keep_all_rows,
+            rate_hz=args.rate, topic=args.topic, start_s=args.start, end_s=args.end, tcp_offset=args.tcp_offset,
+        )
+        prepared = bulk.preparer.prepare(demonstration, name, args.description, source=path)
+    except InputError as error:
+        bulk.refuse(path, _BAD_LOG, _reason(error, path))
+        return
+    names[name.lower()] = path
+    bulk.pending.append((path, prepared, warnings, reports))
+
+
 # -------------------------------------------------------------------------------- show
 
 
@@ -278,8 +506,9 @@ def feature_summary(feature):
 
     Parameters
     ----------
-    feature : Feature
-        With n - 1 deltas.
+    feature : Feature or dict
+        With n - 1 deltas (``rotations`` (n - 1, 4) and ``translations`` (n - 1, 3)
+        are used; a dict of those two arrays does as well).
 
     Returns
     -------
@@ -288,23 +517,29 @@ def feature_summary(feature):
         ``q_wxyz``, ``axis``, ``angle_rad``, ``translation_m`` (in the frame of that
         sample).
     """
-    count = len(feature)
-    rows = []
-    for label, fraction in SUMMARY_FRACTIONS:
-        index = int(round(fraction * (count - 1)))
-        q = np.asarray(feature.rotations[index], dtype=float)
-        axis, angle = axis_angle_from_quaternion(q)
-        rows.append(
-            {
-                "label": label,
-                "delta": index + 1,
-                "q_wxyz": [float(v) for v in q],
-                "axis": [float(v) for v in axis],
-                "angle_rad": float(angle),
-                "translation_m": [float(v) for v in feature.translations[index]],
-            }
-        )
-    return rows
+    return _feature_summaries([feature])[0]
+
+
+def _feature_summaries(features):
+    """:func:`feature_summary` of many features, the axis-angle of all of them at once."""
+    parts = [f if isinstance(f, dict) else {"rotations": f.rotations, "translations": f.translations}
+             for f in features]
+    if not parts:
+        return []
+    indices = np.array([[int(round(fraction * (len(part["rotations"]) - 1))) for _, fraction in SUMMARY_FRACTIONS]
+                        for part in parts])
+    q = np.array([part["rotations"][row] for part, row in zip(parts, indices)], dtype=float)
+    translation = np.array([part["translations"][row] for part, row in zip(parts, indices)], dtype=float)
+    axis, angle = axis_angle_from_quaternion(q)
+    q, axis, angle, translation = q.tolist(), axis.tolist(), angle.tolist(), translation.tolist()
+    return [
+        [
+            {"label": label, "delta": int(indices[i, j]) + 1, "q_wxyz": q[i][j], "axis": axis[i][j],
+             "angle_rad": angle[i][j], "translation_m": translation[i][j]}
+            for j, (label, _) in enumerate(SUMMARY_FRACTIONS)
+        ]
+        for i in range(len(parts))
+    ]
 
 
 def bundled_libraries_text():
@@ -322,20 +557,21 @@ def library_listing(library):
     """The ``library show --json`` document (docs/cli.rst), plus optional fields:
     ``read_only``, ``directory``, ``bundled_libraries``, and per demonstration ``added``
     and ``feature`` (resampled sample count and :func:`feature_summary`)."""
-    demos = []
-    for entry in library.entries:
-        feature = library.feature(entry.name)
-        demos.append(
-            {
-                "name": entry.name,
-                "path": str(library.log_path(entry.name)),
-                "samples": entry.samples,
-                "duration_s": entry.duration_s,
-                "description": entry.description,
-                "added": entry.added,
-                "feature": {"samples": len(feature) + 1, "summary": feature_summary(feature)},
-            }
-        )
+    parts = library.feature_parts(("rotations", "translations"))  # one query, not one file per demonstration
+    entries = library.entries
+    summaries = _feature_summaries([parts[entry.name] for entry in entries])
+    demos = [
+        {
+            "name": entry.name,
+            "path": str(library.path / entry.file),
+            "samples": entry.samples,
+            "duration_s": entry.duration_s,
+            "description": entry.description,
+            "added": entry.added,
+            "feature": {"samples": len(parts[entry.name]["rotations"]) + 1, "summary": summary},
+        }
+        for entry, summary in zip(entries, summaries)
+    ]
     return {
         "library": library.label,
         "X_tool0_E": pose_json_from_rigid_transform(library.X_tool0_E),
@@ -397,11 +633,11 @@ def run_show(args):
     library = Library.open(args.library)
     library.write_feature_caches()  # a user's library keeps fresh caches; bundled ones none
     listing = library_listing(library)
-    text = strict_json_text(listing, indent=2)
     if args.json == "-":
-        print(text)
+        print(strict_json_text(listing, indent=2))
         return EXIT_OK
     if args.json:
+        text = strict_json_text(listing, indent=2)
         output = prepare_output(args.json, "--json")
         try:
             atomic_write_bytes(output, (text + "\n").encode("utf-8"))

@@ -81,7 +81,7 @@ from drake_lfd.core.features import (
     arc_lengths_from_poses,
 )
 from drake_lfd.core.resources import bundled_library_directories
-from drake_lfd.io.atomic_files import atomic_write_bytes, fsync_directory
+from drake_lfd.io.atomic_files import atomic_write_bytes, atomic_write_many, fsync_directory
 from drake_lfd.io.demonstration_logs import (
     check_plausible_motion,
     log_sample_summary,
@@ -124,6 +124,7 @@ __all__ = [
     "tool_frame_options",
     "is_unused_library_directory",
     "remove_stale_temporaries",
+    "DemonstrationPreparer",
     "Library",
     "copy_library",
     "library_features",
@@ -303,6 +304,37 @@ def _prepare(demonstration, name, description, *, kinematics, num_samples, rotat
     return _PendingDemo(entry, rtde_csv_text(stored).encode("utf-8"), feature)
 
 
+class DemonstrationPreparer:
+    """Checks new demonstrations and computes their features for one end-effector frame,
+    before any library is touched: what ``library add`` of many logs runs on each log
+    (:meth:`Library.prepare` uses one too).
+
+    Parameters
+    ----------
+    X_tool0_E : RigidTransform
+    label : str
+        How to name the library in errors.
+    num_samples, rotation_length_m
+        Feature parameters (``features.Feature.from_poses``).
+    """
+
+    def __init__(self, X_tool0_E, label, num_samples=DEFAULT_NUM_SAMPLES,
+                 rotation_length_m=DEFAULT_ROTATION_LENGTH_M):
+        self.kinematics = UR5eKinematics(X_tool0_E=X_tool0_E)
+        self.label = str(label)
+        self.num_samples = int(num_samples)
+        self.rotation_length_m = float(rotation_length_m)
+
+    def prepare(self, demonstration, name, description="", *, source=None):
+        """The checked demonstration, ready for :meth:`Library.add_prepared`; writes
+        nothing. Raises InputError as :meth:`Library.add` (bad name, invalid
+        demonstration, one that does not move)."""
+        return _prepare(
+            demonstration, name, description, kinematics=self.kinematics, num_samples=self.num_samples,
+            rotation_length_m=self.rotation_length_m, source=source, label=self.label,
+        )
+
+
 def bundled_library_names():
     """Names of the libraries bundled with drake-lfd (sorted; may be empty)."""
     names = set()
@@ -395,6 +427,7 @@ class Library:
         self.rotation_length_m = float(rotation_length_m)
         self._features = {}  # name -> _FeatureRecord
         self._kinematics = None  # built on first use, for X_tool0_E
+        self._preparer = None  # likewise
         self._rows = {}  # name -> CacheRow, the feature cache's rows as read (or written) by this object
         self._positions = {}  # name -> index into the manifest's entries
         self._set_manifest(manifest)
@@ -549,14 +582,22 @@ class Library:
             As :meth:`create` and :meth:`add`; or the library made meanwhile has another
             end-effector frame.
         """
-        parameters = {
-            "num_samples": feature_parameters.get("num_samples", DEFAULT_NUM_SAMPLES),
-            "rotation_length_m": feature_parameters.get("rotation_length_m", DEFAULT_ROTATION_LENGTH_M),
-        }
-        _prepare(
-            demonstration, name, description, kinematics=UR5eKinematics(X_tool0_E=X_tool0_E),
-            source=source, label=str(Path(path).absolute()), **parameters,
+        DemonstrationPreparer(X_tool0_E, Path(path).absolute(), **feature_parameters).prepare(
+            demonstration, name, description, source=source
         )
+        library = cls.open_or_create(path, X_tool0_E, **feature_parameters)
+        return library, library.add(demonstration, name, description, source=source)
+
+    @classmethod
+    def open_or_create(cls, path, X_tool0_E, **feature_parameters):
+        """:meth:`create`, or, if another process made ``path`` a library meanwhile with the
+        same end-effector frame, :meth:`open` it.
+
+        Raises
+        ------
+        InputError
+            As :meth:`create`; or the library made meanwhile has another frame.
+        """
         try:
             library = cls.create(path, X_tool0_E, **feature_parameters)
         except InputError:
@@ -571,7 +612,7 @@ class Library:
                     file=library.label,
                     field="X_tool0_E",
                 ) from None
-        return library, library.add(demonstration, name, description, source=source)
+        return library
 
     # -- reading ---------------------------------------------------------------------
     @property
@@ -769,7 +810,9 @@ class Library:
         )
 
     # -- writing ---------------------------------------------------------------------
-    def _check_writable(self):
+    def check_writable(self):
+        """Raises InputError (naming where it is installed and how to copy it) for a read-only
+        (bundled) library."""
         if self.read_only:
             raise InputError(
                 f"is a bundled library and read-only (installed in {self.path}); make an editable copy "
@@ -819,13 +862,10 @@ class Library:
         InputError
             As :meth:`add` (read-only library, bad name, invalid demonstration).
         """
-        self._check_writable()
-        if self._kinematics is None:
-            self._kinematics = UR5eKinematics(X_tool0_E=self.X_tool0_E)
-        return _prepare(
-            demonstration, name, description, kinematics=self._kinematics, num_samples=self.num_samples,
-            rotation_length_m=self.rotation_length_m, source=source, label=self.label,
-        )
+        self.check_writable()
+        if self._preparer is None:
+            self._preparer = DemonstrationPreparer(self.X_tool0_E, self.label, self.num_samples, self.rotation_length_m)
+        return self._preparer.prepare(demonstration, name, description, source=source)
 
     def add_prepared(self, pending):
         """Adds prepared demonstrations (:meth:`prepare`) in one turn of the library's lock:
@@ -853,7 +893,7 @@ class Library:
             The library's lock cannot be taken, or its end-effector frame changed on
             disk; nothing is added then.
         """
-        self._check_writable()
+        self.check_writable()
         added, refused, accepted = [], [], []
         with _writing(self.path, self.label):
             manifest = read_manifest(self.path, check_logs=False)  # what is on disk now
@@ -878,12 +918,9 @@ class Library:
                 self._set_manifest(manifest)
                 return added, refused
             _make_directory(self.path / DEMOS_DIRECTORY)
-            written = []
+            written = [self.path / item.entry.file for item in accepted]
             try:
-                for item in accepted:
-                    log = self.path / item.entry.file
-                    atomic_write_bytes(log, item.log_bytes)
-                    written.append(log)
+                atomic_write_many([(log, item.log_bytes) for log, item in zip(written, accepted)])
                 entries = manifest.entries + tuple(item.entry for item in accepted)
                 write_manifest(self.path, manifest.with_entries(entries))
             except BaseException:
@@ -918,7 +955,7 @@ class Library:
         InputError
             Read-only library or no such demonstration.
         """
-        self._check_writable()
+        self.check_writable()
         with _writing(self.path, self.label):
             manifest = read_manifest(self.path, check_logs=False)  # what is on disk now
             self._set_manifest(manifest)
