@@ -587,6 +587,11 @@ def _format_vector(values, digits=3):
     return "(" + ", ".join(f"{v:+.{digits}f}" for v in values) + ")"
 
 
+# The rows of a listing, formatted with one %-format each (a library may list 10,000).
+_Q_FORMAT = "(%+.3f, %+.3f, %+.3f, %+.3f)"
+_AXIS_FORMAT = "(%+.2f, %+.2f, %+.2f)"
+
+
 def format_listing(listing):
     """The human-readable table of a :func:`library_listing`, as one string."""
     pose = listing["X_tool0_E"]
@@ -615,12 +620,12 @@ def format_listing(listing):
             else:
                 head = " " * (width + 2 + 7 + 2 + 10)
             delta = f"{row['label']} ({row['delta']})"
-            translation = np.asarray(row["translation_m"])
-            length = float(np.linalg.norm(translation))
-            direction = _format_vector(translation / length, 2) if length >= 1e-3 else "(none, < 1 mm)"
+            x, y, z = row["translation_m"]
+            length = math.sqrt(x * x + y * y + z * z)
+            direction = _AXIS_FORMAT % (x / length, y / length, z / length) if length >= 1e-3 else "(none, < 1 mm)"
             lines.append(
-                f"{head}  {delta:<12}  {_format_vector(row['q_wxyz']):<34}  "
-                f"{math.degrees(row['angle_rad']):6.1f} deg about {_format_vector(row['axis'], 2)}"
+                f"{head}  {delta:<12}  {_Q_FORMAT % tuple(row['q_wxyz']):<34}  "
+                f"{math.degrees(row['angle_rad']):6.1f} deg about {_AXIS_FORMAT % tuple(row['axis'])}"
                 f"   {direction}"
             )
         if demo["description"]:

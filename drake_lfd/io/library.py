@@ -428,6 +428,7 @@ class Library:
         self._features = {}  # name -> _FeatureRecord
         self._kinematics = None  # built on first use, for X_tool0_E
         self._preparer = None  # likewise
+        self._keys = {}  # log sha256 -> feature cache key, memoised
         self._rows = {}  # name -> CacheRow, the feature cache's rows as read (or written) by this object
         self._positions = {}  # name -> index into the manifest's entries
         self._set_manifest(manifest)
@@ -725,13 +726,16 @@ class Library:
         """
         if self.read_only:
             return ()
-        records = self._feature_records(self.names)  # computed outside the lock
-        missing = [(name, records[name]) for name in self.names if not records[name].on_disk and records[name].row]
+        # A row is fresh when the log's stamp is the row's and its key the one wanted: then
+        # nothing is read. The others are computed outside the lock.
+        stale = [name for name in self.names if not self._row_is_fresh(name)]
+        records = self._feature_records(stale)
+        missing = [(name, records[name]) for name in stale if not records[name].on_disk and records[name].row]
         listed = set(self.names)
         unlisted = [name for name in self._rows if name not in listed]
         legacy = [p for p in (self.path / CACHE_DIRECTORY).glob("*.npz") if p.stem in listed]
-        if not (missing or unlisted or legacy):
-            return ()
+        if not (missing or unlisted or legacy or _temporaries(self.path)):
+            return ()  # nothing to write, and no debris of a killed writer to clear
         written = []
         try:
             with _writing(self.path, self.label):
@@ -740,7 +744,9 @@ class Library:
                         self._features[name] = record._replace(on_disk=True)
                         self._rows[name] = record.row
                         written.append(name)
-                if unlisted and delete_rows(self._cache_path(), unlisted):
+                journal = self._cache_path().with_name(CACHE_NAME + JOURNAL_SUFFIX)
+                # (Any write rolls back the journal a killed writer left, and deletes it.)
+                if (unlisted or journal.exists()) and delete_rows(self._cache_path(), unlisted):
                     for name in unlisted:
                         self._rows.pop(name, None)
                 for path in legacy:
@@ -750,8 +756,23 @@ class Library:
             return ()
         return tuple(written)
 
+    def _row_is_fresh(self, name):
+        """Whether the cache row read for ``name`` holds its feature for the log as it is."""
+        row = self._rows.get(name)
+        memo = self._features.get(name)
+        if row is None or (memo is not None and not memo.on_disk):  # (its row could not be used)
+            return False
+        try:
+            stamp = log_stamp(self.path / self.entry(name).file)
+        except OSError:
+            return False
+        return row.stamp == stamp and row.feature_key == self._key(row.sha256)
+
     def _key(self, sha256):
-        return cache_key(sha256, self.X_tool0_E, self.num_samples, self.rotation_length_m)
+        key = self._keys.get(sha256)
+        if key is None:
+            key = self._keys[sha256] = cache_key(sha256, self.X_tool0_E, self.num_samples, self.rotation_length_m)
+        return key
 
     def _log_identity(self, name):
         """The :class:`_LogIdentity` of ``name``'s log: from its cache row when the log's

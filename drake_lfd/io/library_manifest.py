@@ -28,6 +28,7 @@ joint logs (:mod:`drake_lfd.io.demonstration_logs`).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -156,25 +157,44 @@ def _manifest_error(problem, manifest, field=None):
 _PLAIN_RELATIVE = re.compile(r"^(?!\.\.?(?:/|$))[^/\0]+(?:/(?!\.\.?(?:/|$))[^/\0]+)*$")
 
 
-def _inside(directory, file, resolved):
-    """Whether ``directory / file`` (a relative path) resolves to a path inside ``directory``.
-
-    ``resolved`` memoises the resolution of the directory and of each parent folder (one
-    per library in practice), so a manifest of thousands of entries costs one
-    ``resolve`` per folder and an ``lstat`` per entry: only an entry that is itself a
-    symbolic link is resolved on its own."""
+def _folder(directory, parent, resolved):
+    """What :func:`_inside` knows of one folder of the library, memoised in ``resolved``:
+    ``None`` if the folder resolves outside ``directory``, else name -> (is a file, is a
+    symbolic link) of its entries, from one ``scandir``."""
+    if parent in resolved:
+        return resolved[parent]
     root = resolved.get(None)
     if root is None:
         root = resolved[None] = directory.resolve()
-    parent = file.rpartition("/")[0]
-    inside = resolved.get(parent)
-    if inside is None:
-        inside = resolved[parent] = (root / parent).resolve().is_relative_to(root)
-    if not inside:
-        return False
-    if os.path.islink(os.path.join(directory, file)):
-        return (root / file).resolve().is_relative_to(root)
-    return True
+    folder = None
+    if (root / parent).resolve().is_relative_to(root):
+        folder = {}
+        with contextlib.suppress(OSError):
+            with os.scandir(os.path.join(directory, parent)) as entries:
+                for entry in entries:
+                    with contextlib.suppress(OSError):
+                        folder[entry.name] = (entry.is_file(), entry.is_symlink())
+    resolved[parent] = folder
+    return folder
+
+
+def _inside(directory, file, resolved):
+    """``(inside, is_file)``: whether ``directory / file`` (a relative path) resolves to a
+    path inside ``directory``, and whether it is a file.
+
+    ``resolved`` memoises the resolution and the listing of each folder (one per library
+    in practice, :func:`_folder`), so a manifest of thousands of entries costs one
+    ``resolve`` and one ``scandir`` per folder: only an entry that is itself a symbolic
+    link is resolved on its own."""
+    parent, _, base = file.rpartition("/")
+    folder = _folder(directory, parent, resolved)
+    if folder is None:
+        return False, False
+    is_file, is_link = folder.get(base, (False, False))
+    if is_link:
+        root = resolved[None]
+        return (root / file).resolve().is_relative_to(root), is_file
+    return True, is_file
 
 
 def _parse_entry(value, index, directory, manifest, check_logs, resolved):
@@ -200,11 +220,12 @@ def _parse_entry(value, index, directory, manifest, check_logs, resolved):
         if relative.is_absolute() or ".." in relative.parts or "\0" in file:
             raise _manifest_error(f"{file!r} is not a path inside the library directory", manifest, f"{field}.file")
         file = relative.as_posix()
-    if not _inside(directory, file, resolved):
+    inside, is_file = _inside(directory, file, resolved)
+    if not inside:
         raise _manifest_error(
             f"{value['file']!r} is not a path inside the library directory", manifest, f"{field}.file"
         )
-    if check_logs and not os.path.isfile(os.path.join(directory, file)):
+    if check_logs and not is_file:
         raise _manifest_error(
             f"the joint log {value['file']} is missing; restore it, or drop the entry with "
             f"'drake-lfd library remove {directory} {name}'",
