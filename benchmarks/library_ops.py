@@ -49,6 +49,9 @@ X_TOOL0_E = RigidTransform(RollPitchYaw(0.0, math.pi / 2, 0.0), [0.0, 0.0, 0.2])
 # Demonstrations prepared per batch (each batch one turn of the library's lock).
 BATCH = 1000
 KEYS = ("build_s", "open_s", "show_s", "add_s", "remove_s", "features_s", "peak_rss_mb")
+# Processor seconds of the same operations: what the work costs when other processes share
+# the cores (the wall times above then include waiting for a core, and for the disk).
+CPU_KEYS = ("open_cpu_s", "show_cpu_s", "add_cpu_s", "remove_cpu_s", "features_cpu_s")
 
 
 def generated_demonstration(index: int, samples: int = 50) -> Demonstration:
@@ -92,12 +95,14 @@ def build_library(root: Path, size: int, *, workers: int = 2) -> float:
 
 
 def _timed(action, repeats):
-    times = []
+    """Median wall and processor seconds of ``repeats`` runs of ``action``."""
+    walls, cpus = [], []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         action()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
+        walls.append(time.perf_counter() - start)
+        cpus.append(time.process_time() - start_cpu)
+    return statistics.median(walls), statistics.median(cpus)
 
 
 def _run_quietly(argv):
@@ -124,7 +129,8 @@ def measure_library_operations(size: int, workdir: Path, *, repeats: int = 3) ->
     -------
     dict
         Seconds for ``build_s``, ``open_s``, ``show_s``, ``add_s``, ``remove_s``,
-        ``features_s``; ``peak_rss_mb``; ``size``.
+        ``features_s`` (wall) and ``open_cpu_s`` .. ``features_cpu_s`` (processor time of
+        this process); ``peak_rss_mb``; ``size``.
     """
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
@@ -133,14 +139,15 @@ def measure_library_operations(size: int, workdir: Path, *, repeats: int = 3) ->
     extra = workdir / "extra.csv"
     extra.write_text(rtde_csv_text(generated_demonstration(10**6)))
     _run_quietly(["library", "show", root])  # as after any bulk add: the first show settles the caches
-    result["open_s"] = _timed(lambda: Library.open(root), repeats)
-    result["show_s"] = _timed(lambda: _run_quietly(["library", "show", root]), repeats)
+    result["open_s"], result["open_cpu_s"] = _timed(lambda: Library.open(root), repeats)
+    result["show_s"], result["show_cpu_s"] = _timed(lambda: _run_quietly(["library", "show", root]), repeats)
     adds, removes = [], []
     for _ in range(repeats):
         adds.append(_timed(lambda: _run_quietly(["library", "add", root, extra, "--name", "extra_ops"]), 1))
         removes.append(_timed(lambda: _run_quietly(["library", "remove", root, "extra_ops"]), 1))
-    result["add_s"], result["remove_s"] = statistics.median(adds), statistics.median(removes)
-    result["features_s"] = _timed(lambda: library_features(Library.open(root)), repeats)
+    result["add_s"], result["add_cpu_s"] = (statistics.median(times) for times in zip(*adds))
+    result["remove_s"], result["remove_cpu_s"] = (statistics.median(times) for times in zip(*removes))
+    result["features_s"], result["features_cpu_s"] = _timed(lambda: library_features(Library.open(root)), repeats)
     result["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     return result
 
@@ -151,12 +158,12 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--keep", type=Path, help="build the libraries here and keep them (default: a temporary directory)")
     args = parser.parse_args(argv)
-    print(f"{'size':>6}  " + "  ".join(f"{key:>11}" for key in KEYS), flush=True)
+    print(f"{'size':>6}  " + "  ".join(f"{key:>11}" for key in KEYS + CPU_KEYS), flush=True)
     with contextlib.ExitStack() as stack:
         workdir = args.keep or Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="library-ops-")))
         for size in args.sizes:
             result = measure_library_operations(size, workdir, repeats=args.repeats)
-            print(f"{size:>6}  " + "  ".join(f"{result[key]:>11.3f}" for key in KEYS), flush=True)
+            print(f"{size:>6}  " + "  ".join(f"{result[key]:>11.3f}" for key in KEYS + CPU_KEYS), flush=True)
             if args.keep is None:
                 shutil.rmtree(workdir / f"library-{size}")
     print(f"load average {' '.join(f'{v:.2f}' for v in os.getloadavg())} on {os.cpu_count()} cores")

@@ -400,3 +400,56 @@ def test_pose_json_refusals_name_the_field(value, field):
     with pytest.raises(InputError) as info:
         rigid_transform_from_pose_json(value, file="f.json", field="X")
     assert str(info.value).startswith(f"f.json: {field}: ")
+
+
+# ------------------------------------------------------------ many demonstrations
+
+
+def test_open_reads_no_log_whose_stamp_is_its_cache_row(library, tmp_path, monkeypatch):
+    """The cache row vouches for an unchanged log (size, times, inode); a log touched since
+    is read and checked again, and one edited by hand is refused as before."""
+    root = tmp_path / "lib"
+    read = []
+    real = mut.log_sample_summary
+    monkeypatch.setattr(mut, "log_sample_summary", lambda data, path: read.append(str(path)) or real(data, path))
+    assert mut.Library.open(root).names == ("screw_cw", "pour")
+    assert read == []
+    log = root / "demos" / "pour.csv"
+    os.utime(log, ns=(1, 1))  # the same bytes, another stamp
+    assert mut.Library.open(root).names == ("screw_cw", "pour")
+    assert read == [str(log)]
+    log.write_text("\n".join(log.read_text().splitlines()[:-1]) + "\n")  # one sample less
+    with pytest.raises(InputError, match=r"demos\[1\].samples: is 60 but the joint log demos/pour.csv has 59"):
+        mut.Library.open(root)
+
+
+def test_many_demonstrations_are_added_in_one_turn_of_the_lock(library, tmp_path):
+    root = tmp_path / "lib"
+    pending = [library.prepare(make_demo(10 + i), f"bulk{i}") for i in range(12)]  # >= 8: one sync for all
+    pending.append(library.prepare(make_demo(30), "POUR"))  # taken, ignoring case
+    pending.append(library.prepare(make_demo(31), "bulk3"))  # repeated
+    added, refused = library.add_prepared(pending)
+    assert [entry.name for entry in added] == [f"bulk{i}" for i in range(12)]
+    assert [(position, "already" in str(error)) for position, error in refused] == [(12, True), (13, True)]
+    reopened = mut.Library.open(root)
+    assert reopened.names == ("screw_cw", "pour", *(f"bulk{i}" for i in range(12)))
+    np.testing.assert_array_equal(reopened.demonstration("bulk7").joint_positions, make_demo(17).joint_positions)
+    assert sorted(cache_rows(root)) == sorted(reopened.names)
+    features = mut.library_features(reopened)
+    np.testing.assert_array_equal(features["bulk7"].deltas, pending[7].feature.deltas)
+
+
+def test_a_crash_while_adding_many_adds_none_of_them(library, tmp_path, monkeypatch):
+    root = tmp_path / "lib"
+    before = tree_digest(root)
+    pending = [library.prepare(make_demo(40 + i), f"many{i}") for i in range(9)]
+
+    def crash(*args):
+        raise Crash("power cut")
+
+    monkeypatch.setattr(mut, "write_manifest", crash)
+    with pytest.raises(Crash):
+        library.add_prepared(pending)
+    monkeypatch.undo()
+    assert tree_digest(root) == before
+    assert mut.Library.open(root).names == ("screw_cw", "pour")

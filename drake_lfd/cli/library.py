@@ -53,6 +53,8 @@ from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
 from drake_lfd.cli.argument_checks import prepare_output
 from drake_lfd.cli.progress import ProgressBar
 from drake_lfd.io.atomic_files import atomic_write_bytes
+from drake_lfd.io.feature_cache import SUMMARY_FRACTIONS as CACHED_SUMMARY_FRACTIONS
+from drake_lfd.io.feature_cache import feature_summary_rows, summary_indices
 from drake_lfd.io.log_import import check_time_window, read_demonstration_log
 from drake_lfd.io.rosbag_logs import bag_location, is_bag
 from drake_lfd.io.library import (
@@ -88,8 +90,9 @@ __all__ = [
 # What a new library's frame is asked for with (docs/cli.rst, library add).
 IDENTITY_FRAME_OPTIONS = "--tool0-E-p 0 0 0 --tool0-E-euler-zyx 0 0 0"
 
-# Where along the feature ``show`` samples its rotation (fractions of the deltas).
-SUMMARY_FRACTIONS = (("start", 0.0), ("middle", 0.5), ("late", 0.75))
+# Where along the feature ``show`` samples its rotation (fractions of the deltas; the feature
+# cache stores each feature's numbers there, io/feature_cache.py).
+SUMMARY_FRACTIONS = tuple(zip(("start", "middle", "late"), CACHED_SUMMARY_FRACTIONS))
 
 
 def add_parser(subparsers):
@@ -506,9 +509,8 @@ def feature_summary(feature):
 
     Parameters
     ----------
-    feature : Feature or dict
-        With n - 1 deltas (``rotations`` (n - 1, 4) and ``translations`` (n - 1, 3)
-        are used; a dict of those two arrays does as well).
+    feature : Feature
+        With n - 1 deltas.
 
     Returns
     -------
@@ -517,28 +519,24 @@ def feature_summary(feature):
         ``q_wxyz``, ``axis``, ``angle_rad``, ``translation_m`` (in the frame of that
         sample).
     """
-    return _feature_summaries([feature])[0]
+    return _feature_summaries([(len(feature), *feature_summary_rows(feature))])[0]
 
 
-def _feature_summaries(features):
-    """:func:`feature_summary` of many features, the axis-angle of all of them at once."""
-    parts = [f if isinstance(f, dict) else {"rotations": f.rotations, "translations": f.translations}
-             for f in features]
-    if not parts:
+def _feature_summaries(summaries):
+    """:func:`feature_summary` of many features, given as ``(num_deltas, rotations,
+    translations)`` (``Library.feature_summaries``); the axis-angles of all at once."""
+    if not summaries:
         return []
-    indices = np.array([[int(round(fraction * (len(part["rotations"]) - 1))) for _, fraction in SUMMARY_FRACTIONS]
-                        for part in parts])
-    q = np.array([part["rotations"][row] for part, row in zip(parts, indices)], dtype=float)
-    translation = np.array([part["translations"][row] for part, row in zip(parts, indices)], dtype=float)
-    axis, angle = axis_angle_from_quaternion(q)
-    q, axis, angle, translation = q.tolist(), axis.tolist(), angle.tolist(), translation.tolist()
+    axis, angle = axis_angle_from_quaternion(np.array([rotations for _, rotations, _ in summaries], dtype=float))
+    axis, angle = axis.tolist(), angle.tolist()
+    labels = [label for label, _ in SUMMARY_FRACTIONS]
     return [
         [
-            {"label": label, "delta": int(indices[i, j]) + 1, "q_wxyz": q[i][j], "axis": axis[i][j],
-             "angle_rad": angle[i][j], "translation_m": translation[i][j]}
-            for j, (label, _) in enumerate(SUMMARY_FRACTIONS)
+            {"label": label, "delta": index + 1, "q_wxyz": list(rotations[j]), "axis": axis[i][j],
+             "angle_rad": angle[i][j], "translation_m": list(translations[j])}
+            for j, (label, index) in enumerate(zip(labels, summary_indices(num_deltas)))
         ]
-        for i in range(len(parts))
+        for i, (num_deltas, rotations, translations) in enumerate(summaries)
     ]
 
 
@@ -557,18 +555,20 @@ def library_listing(library):
     """The ``library show --json`` document (docs/cli.rst), plus optional fields:
     ``read_only``, ``directory``, ``bundled_libraries``, and per demonstration ``added``
     and ``feature`` (resampled sample count and :func:`feature_summary`)."""
-    parts = library.feature_parts(("rotations", "translations"))  # one query, not one file per demonstration
+    # One query for all, 168 bytes of each feature: not one file (or feature) per demonstration.
+    rows = library.feature_summaries()
     entries = library.entries
-    summaries = _feature_summaries([parts[entry.name] for entry in entries])
+    summaries = _feature_summaries([rows[entry.name] for entry in entries])
+    directory = str(library.path)
     demos = [
         {
             "name": entry.name,
-            "path": str(library.path / entry.file),
+            "path": os.path.join(directory, entry.file),
             "samples": entry.samples,
             "duration_s": entry.duration_s,
             "description": entry.description,
             "added": entry.added,
-            "feature": {"samples": len(parts[entry.name]["rotations"]) + 1, "summary": summary},
+            "feature": {"samples": rows[entry.name][0] + 1, "summary": summary},
         }
         for entry, summary in zip(entries, summaries)
     ]

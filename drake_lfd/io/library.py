@@ -95,8 +95,10 @@ from drake_lfd.io.feature_cache import (
     cache_key,
     delete_rows,
     log_stamp,
+    feature_summary_rows,
     read_features,
     read_rows,
+    read_summaries,
     write_rows,
 )
 from drake_lfd.io.file_lock import LockUnavailable, exclusive_lock, shared_lock
@@ -224,7 +226,7 @@ def _check_logs(directory, manifest, rows):
     log's and the log is not read again; any other log is read and summarised."""
     manifest_path = Path(directory) / MANIFEST_NAME
     for index, entry in enumerate(manifest.entries):
-        log = Path(directory) / entry.file
+        log = os.path.join(directory, entry.file)  # a string: thousands of Path joins cost more than the stats
         field = f"demos[{index}]"
         remedy = (
             f"restore the log, or drop the entry with 'drake-lfd library remove {directory} {entry.name}' "
@@ -235,6 +237,7 @@ def _check_logs(directory, manifest, rows):
             if row is not None and row.stamp == log_stamp(log):
                 samples, duration_s = row.samples, row.duration_s
             else:
+                log = Path(log)
                 samples, duration_s = log_sample_summary(log.read_bytes(), log)
         except FileNotFoundError:
             raise InputError(
@@ -685,20 +688,24 @@ class Library:
         records = self._feature_records(names)
         return {name: records[name].feature for name in names}
 
-    def feature_parts(self, parts, names=None):
-        """Name -> {part: array} of some of each feature's arrays (``rotations``,
-        ``translations``, ``deltas``, ``poses``), read-only: for a listing that needs
-        a few numbers of every feature without building them all. Falls back to the
-        whole :meth:`feature` for a demonstration the cache does not hold."""
+    def feature_summaries(self, names=None):
+        """What a listing shows of each feature, without building the features: name ->
+        ``(num_deltas, rotations, translations)``, the deltas' rotations (w, x, y, z) and
+        translations at :data:`~drake_lfd.io.feature_cache.SUMMARY_FRACTIONS`
+        (:func:`~drake_lfd.io.feature_cache.feature_summary_rows`), in ``names``' order
+        (default: every demonstration). From the cache in one query, and from
+        :meth:`feature` for a demonstration the cache does not hold for its log as it is.
+        """
         names = self.names if names is None else tuple(names)
-        identities = {name: self._log_identity(name) for name in names}
-        wanted = {name: self._key(identity.sha256) for name, identity in identities.items()}
-        found = read_features(self._cache_path(), wanted, parts)
+        wanted = {name: self._key(self._log_identity(name).sha256) for name in names}
+        found = read_summaries(self._cache_path(), wanted)
+        result = {}
         for name in names:
             if name not in found:
                 feature = self.feature(name)
-                found[name] = {part: getattr(feature, part) for part in parts}
-        return {name: found[name] for name in names}
+                found[name] = (len(feature), *feature_summary_rows(feature))
+            result[name] = found[name]
+        return result
 
     def resampled_poses(self, name):
         """The arc-length resampled end-effector poses of ``name`` as dual quaternions,
@@ -763,7 +770,7 @@ class Library:
         if row is None or (memo is not None and not memo.on_disk):  # (its row could not be used)
             return False
         try:
-            stamp = log_stamp(self.path / self.entry(name).file)
+            stamp = log_stamp(os.path.join(self.path, self.entry(name).file))
         except OSError:
             return False
         return row.stamp == stamp and row.feature_key == self._key(row.sha256)
@@ -777,12 +784,13 @@ class Library:
     def _log_identity(self, name):
         """The :class:`_LogIdentity` of ``name``'s log: from its cache row when the log's
         stamp is the row's, else by reading the log."""
-        log = self.path / self.entry(name).file
+        log = os.path.join(self.path, self.entry(name).file)
         try:
             stamp = log_stamp(log)
             row = self._rows.get(name)
             if row is not None and row.stamp == stamp:
                 return _LogIdentity(stamp, row.sha256, row.samples, row.duration_s, None, True)
+            log = Path(log)
             log_bytes = log.read_bytes()
             steady = log_stamp(log) == stamp
         except OSError as error:
