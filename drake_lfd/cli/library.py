@@ -17,6 +17,12 @@ A thin front end over :mod:`drake_lfd.io.library` (documented in docs/cli.rst):
   and leaves the library exactly as it was (a refused add to a new directory creates
   nothing). Concurrent ``add`` and ``remove`` on one library take turns (the library's
   lock, :mod:`drake_lfd.io.library`).
+- ``library add LIB DEMO_OR_DIR_OR_GLOB...`` without ``--name`` adds every log the
+  arguments name (files, folders, glob patterns: :func:`find_logs`), each named after
+  its file's stem, the other options applying to all; a progress bar on a terminal;
+  every valid log added (in batches, each one turn of the library's lock), each other
+  one refused with one line naming it and why, then one summary line; exit 0 when all
+  were added, 2 when any was refused.
 - ``library show LIB [--json OUT]`` prints a table: per demonstration its samples,
   duration and the rotation of its feature at the start, middle and three quarters of
   the way (``delta`` at 0, 50 and 75 % of the resampled motion, like the paper's Table

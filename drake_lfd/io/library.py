@@ -5,7 +5,7 @@ A library is a folder a user can read and back up with ordinary tools::
     LIB/
       library.json          the manifest (io/library_manifest.py): what the library holds
       demos/<name>.csv      one joint log per demonstration, the project's RTDE-style CSV
-      cache/<name>.npz      resampled poses and feature per demonstration (derived data)
+      cache/features.sqlite the feature cache (derived data, io/feature_cache.py)
       library.lock          empty; writers hold an exclusive flock on it (file_lock.py)
 
 :class:`Library` opens, creates, reads and edits one; docs/libraries.rst documents the
@@ -16,14 +16,17 @@ the library stores the one its demonstrations were recorded with (``X_tool0_E``)
 planning a task with another frame is refused (:func:`check_end_effector_frame`).
 Features are computed by forward kinematics (with ``X_WB`` = identity: features do not
 depend on where the robot stands). Reading a feature (:meth:`Library.feature`,
-:func:`library_features`) never writes: it uses the cache file when its key is fresh
-(``io/feature_cache.py``) and recomputes from the log otherwise. Cache files are written
-only by :meth:`Library.add` and :meth:`Library.write_feature_caches` (which the command
-line calls before it uses a library).
+:meth:`Library.features`, :func:`library_features`) never writes: it uses the cache's
+row when the log's stamp is the row's and its key is fresh (``io/feature_cache.py``;
+all of a library's rows in one query) and recomputes from the log otherwise. Rows are
+written only by :meth:`Library.add_prepared` (``add``) and
+:meth:`Library.write_feature_caches` (which the command line calls before it uses a
+library).
 
 Durability: every file is written atomically (``atomic_files.atomic_write_bytes``: a
 temporary file in the same directory, flushed and fsynced, ``os.replace``, then the
-directory fsynced). ``add`` writes the log before the manifest that references it,
+directory fsynced). ``add`` writes the logs before the manifest that references them (many at once:
+:meth:`Library.add_prepared`, one turn of the lock and one manifest write),
 ``remove`` rewrites the manifest before deleting the log. A crash therefore leaves at
 worst an unreferenced log (ignored, overwritten by a later ``add`` of that name) or a
 temporary file, never a manifest pointing at a missing or partial log.
@@ -39,7 +42,9 @@ never sees a manifest without its logs. The kernel frees a dead holder's lock.
 
 Consistency: opening a library checks each entry against its log (the log exists, and
 its sample count and duration are the manifest's ``samples`` and ``duration_s``), one
-error naming the manifest and the field. ``open(..., check_logs=False)`` skips this so
+error naming the manifest and the field. A log whose stamp (size, modification and
+change times, inode) is its cache row's is not read: the row holds what it had; any
+other log is read and summarised. ``open(..., check_logs=False)`` skips this so
 ``remove`` can drop an entry whose log was deleted or damaged. Every check of a new
 demonstration runs before anything is written, so a refused ``add`` (or
 :meth:`Library.create_with`, a new library with its first demonstration) changes

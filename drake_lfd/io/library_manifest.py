@@ -1,7 +1,7 @@
 """A library's manifest, ``library.json``: its layout, its entries, read and written.
 
 A library directory holds ``library.json`` (the manifest), ``demos/<name>.csv`` (one
-joint log per demonstration), ``cache/<name>.npz`` (derived feature caches) and
+joint log per demonstration), ``cache/features.sqlite`` (the derived feature cache) and
 ``library.lock`` (an empty file whose ``flock`` orders writers, ``file_lock.py``). The
 manifest lists what the library holds and with which end-effector frame::
 
@@ -69,8 +69,8 @@ TEMPORARY_PATTERN = ".*.tmp"
 DEMOS_DIRECTORY = "demos"
 CACHE_DIRECTORY = "cache"
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9_-]+$")
-#: Longest demonstration name: its files (``demos/NAME.csv``, ``cache/NAME.npz`` and their
-#: temporary ``.NAME.csv.RANDOM.tmp``) must fit the 255 bytes of a file name.
+#: Longest demonstration name: its log ``demos/NAME.csv`` and the log's temporary
+#: ``.NAME.csv.RANDOM.tmp`` must fit the 255 bytes of a file name.
 MAX_NAME_LENGTH = 100
 
 _MANIFEST_KEYS = ("schema_version", "X_tool0_E", "demos")
@@ -89,7 +89,7 @@ def check_demo_name(name):
     if len(name) > MAX_NAME_LENGTH:
         raise InputError(
             f"the demonstration name {name[:20]!r}... is too long ({len(name)} characters; at most {MAX_NAME_LENGTH}: "
-            "it names the files demos/NAME.csv and cache/NAME.npz)",
+            "it names the file demos/NAME.csv)",
             field="name",
         )
 
