@@ -69,6 +69,7 @@ from drake_lfd.io.library import (
     Library,
     bundled_library_names,
     bundled_library_paths,
+    collection_paused,
     copy_library,
     is_unused_library_directory,
     tool_frame_options,
@@ -643,7 +644,8 @@ def format_listing(listing):
 def run_show(args):
     library = Library.open(args.library)
     library.write_feature_caches()  # a user's library keeps fresh caches; bundled ones none
-    listing = library_listing(library)
+    with collection_paused():  # tens of thousands of small dicts and lines, no cycles
+        listing = library_listing(library)
     if args.json == "-":
         print(strict_json_text(listing, indent=2))
         return EXIT_OK
@@ -654,7 +656,9 @@ def run_show(args):
             atomic_write_bytes(output, (text + "\n").encode("utf-8"))
         except OSError as error:  # one line naming OUT; a full disk is exit 1 (cli/app.py)
             raise OSError(error.errno, error.strerror or str(error), str(output)) from None
-    print(format_listing(listing))
+    with collection_paused():
+        text = format_listing(listing)
+    print(text)
     return EXIT_OK
 
 

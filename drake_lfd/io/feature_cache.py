@@ -55,6 +55,7 @@ __all__ = [
     "CacheRow",
     "log_stamp",
     "code_fingerprint",
+    "cache_context",
     "cache_key",
     "read_rows",
     "read_features",
@@ -67,7 +68,7 @@ __all__ = [
 ]
 
 # Bump when the rows' layout or the key's recipe changes (an older database is then ignored).
-CACHE_FORMAT = "drake-lfd-feature-cache-3"
+CACHE_FORMAT = "drake-lfd-feature-cache-4"
 #: The database's file name in the library's ``cache/`` directory.
 CACHE_NAME = "features.sqlite"
 #: SQLite's rollback journal beside the database (present only during a write, or after a
@@ -148,24 +149,29 @@ def code_fingerprint() -> str:
     return digest.hexdigest()
 
 
-def cache_key(log_sha256, X_tool0_E, num_samples, rotation_length_m) -> str:
-    """The key a row's feature must carry to be used for this log, frame and parameters.
+def cache_context(X_tool0_E, num_samples, rotation_length_m) -> bytes:
+    """Hash of everything but the log that a feature key covers: the cache's format, the
+    end-effector frame, the feature parameters and :func:`code_fingerprint` (computed once
+    per library, so a key costs one small hash per log)."""
+    digest = hashlib.sha256()
+    digest.update(CACHE_FORMAT.encode())
+    digest.update(np.ascontiguousarray(X_tool0_E.GetAsMatrix4(), dtype=float).tobytes())
+    digest.update(repr((int(num_samples), float(rotation_length_m))).encode())
+    digest.update(code_fingerprint().encode())
+    return digest.digest()
+
+
+def cache_key(log_sha256, context) -> str:
+    """The key a row's feature must carry to be used for this log and context.
 
     Parameters
     ----------
     log_sha256 : str
         Hex sha256 of the joint log's bytes.
-    X_tool0_E : RigidTransform
-    num_samples : int
-    rotation_length_m : float
+    context : bytes
+        :func:`cache_context` of the library's frame and feature parameters.
     """
-    digest = hashlib.sha256()
-    digest.update(CACHE_FORMAT.encode())
-    digest.update(bytes.fromhex(log_sha256))
-    digest.update(np.ascontiguousarray(X_tool0_E.GetAsMatrix4(), dtype=float).tobytes())
-    digest.update(repr((int(num_samples), float(rotation_length_m))).encode())
-    digest.update(code_fingerprint().encode())
-    return digest.hexdigest()
+    return hashlib.sha256(context + bytes.fromhex(log_sha256)).hexdigest()
 
 
 @contextlib.contextmanager

@@ -66,6 +66,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime
+import gc
 import hashlib
 import math
 import os
@@ -97,6 +98,7 @@ from drake_lfd.io.feature_cache import (
     CACHE_NAME,
     JOURNAL_SUFFIX,
     CacheRow,
+    cache_context,
     cache_key,
     delete_rows,
     log_stamp,
@@ -117,6 +119,7 @@ from drake_lfd.io.library_manifest import (
     Manifest,
     check_demo_name,
     read_manifest,
+    read_manifest_bytes,
     write_manifest,
 )
 from drake_lfd.io.pose_records import angle_text, euler_zyx_from_rigid_transform, number_text, pose_yaml_text
@@ -131,6 +134,7 @@ __all__ = [
     "tool_frame_options",
     "is_unused_library_directory",
     "remove_stale_temporaries",
+    "collection_paused",
     "DemonstrationPreparer",
     "Library",
     "copy_library",
@@ -207,6 +211,20 @@ def is_unused_library_directory(path):
                 continue
         return False
     return True
+
+
+@contextlib.contextmanager
+def collection_paused():
+    """Pauses Python's cyclic garbage collector while a block builds many small objects
+    that form no cycles (a manifest's entries, a listing's rows): with 10,000
+    demonstrations its repeated scans of them took a quarter of the time."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 @contextlib.contextmanager
@@ -437,6 +455,8 @@ class Library:
         self._kinematics = None  # built on first use, for X_tool0_E
         self._preparer = None  # likewise
         self._keys = {}  # log sha256 -> feature cache key, memoised
+        self._context = None  # feature_cache.cache_context of the frame and parameters, on first use
+        self._manifest_bytes = None  # library.json as it was when self._manifest was read from it
         self._rows = {}  # name -> CacheRow, the feature cache's rows as read (or written) by this object
         self._positions = {}  # name -> index into the manifest's entries
         self._set_manifest(manifest)
@@ -494,8 +514,9 @@ class Library:
     @classmethod
     def _load(cls, directory, *, label, read_only, check_logs=True, **feature_parameters):
         # The shared lock keeps writers out while the manifest and the logs are compared.
-        with shared_lock(Path(directory) / LOCK_NAME):
-            manifest = read_manifest(directory, check_logs=check_logs)
+        with shared_lock(Path(directory) / LOCK_NAME), collection_paused():
+            manifest_bytes = read_manifest_bytes(directory)
+            manifest = read_manifest(directory, check_logs=check_logs, data=manifest_bytes)
             rows = read_rows(Path(directory) / CACHE_DIRECTORY / CACHE_NAME)
             if check_logs:
                 _check_logs(directory, manifest, rows)
@@ -507,6 +528,7 @@ class Library:
             **feature_parameters,
         )
         library._rows = rows
+        library._manifest_bytes = manifest_bytes
         return library
 
     @classmethod
@@ -783,7 +805,9 @@ class Library:
     def _key(self, sha256):
         key = self._keys.get(sha256)
         if key is None:
-            key = self._keys[sha256] = cache_key(sha256, self.X_tool0_E, self.num_samples, self.rotation_length_m)
+            if self._context is None:
+                self._context = cache_context(self.X_tool0_E, self.num_samples, self.rotation_length_m)
+            key = self._keys[sha256] = cache_key(sha256, self._context)
         return key
 
     def _log_identity(self, name):
@@ -844,6 +868,16 @@ class Library:
         )
 
     # -- writing ---------------------------------------------------------------------
+    def _manifest_on_disk(self):
+        """The manifest as it is on disk now (call with the lock held): the one this object
+        read if the file holds the same bytes, else the file read again."""
+        data = read_manifest_bytes(self.path)
+        if data != self._manifest_bytes:
+            with collection_paused():
+                self._set_manifest(read_manifest(self.path, check_logs=False, data=data))
+            self._manifest_bytes = data
+        return self._manifest
+
     def check_writable(self):
         """Raises InputError (naming where it is installed and how to copy it) for a read-only
         (bundled) library."""
@@ -930,8 +964,9 @@ class Library:
         self.check_writable()
         added, refused, accepted = [], [], []
         with _writing(self.path, self.label):
-            manifest = read_manifest(self.path, check_logs=False)  # what is on disk now
-            if manifest.X_tool0_E_json != self._manifest.X_tool0_E_json:
+            frame = self._manifest.X_tool0_E_json
+            manifest = self._manifest_on_disk()
+            if manifest.X_tool0_E_json != frame:
                 raise InputError(
                     "the library's end-effector frame changed on disk since it was opened", file=self.label
                 )
@@ -956,7 +991,7 @@ class Library:
             try:
                 atomic_write_many([(log, item.log_bytes) for log, item in zip(written, accepted)])
                 entries = manifest.entries + tuple(item.entry for item in accepted)
-                write_manifest(self.path, manifest.with_entries(entries))
+                written_bytes = write_manifest(self.path, manifest.with_entries(entries))
             except BaseException:
                 # Nothing references the new logs yet: take them away again.
                 for log in written:
@@ -964,6 +999,7 @@ class Library:
                         log.unlink()
                 raise
             self._set_manifest(manifest.with_entries(entries))
+            self._manifest_bytes = written_bytes
             rows = []
             for item in accepted:
                 name = item.entry.name
@@ -991,11 +1027,11 @@ class Library:
         """
         self.check_writable()
         with _writing(self.path, self.label):
-            manifest = read_manifest(self.path, check_logs=False)  # what is on disk now
-            self._set_manifest(manifest)
+            manifest = self._manifest_on_disk()
             entry = self.entry(name)
             entries = [e for e in manifest.entries if e.name != name]
-            write_manifest(self.path, manifest.with_entries(entries))
+            self._manifest_bytes = None  # (until the new manifest is written)
+            self._manifest_bytes = write_manifest(self.path, manifest.with_entries(entries))
             self._set_manifest(manifest.with_entries(entries))
             self._features.pop(name, None)
             for path in (self.path / entry.file, self.path / CACHE_DIRECTORY / f"{name}.npz"):

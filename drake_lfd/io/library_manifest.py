@@ -55,6 +55,7 @@ __all__ = [
     "DemoEntry",
     "Manifest",
     "check_demo_name",
+    "read_manifest_bytes",
     "read_manifest",
     "manifest_text",
     "write_manifest",
@@ -253,11 +254,29 @@ def _parse_entry(value, index, directory, manifest, check_logs, resolved):
     )
 
 
-def read_manifest(directory, *, check_logs=True) -> Manifest:
+def read_manifest_bytes(directory) -> bytes:
+    """The bytes of ``directory/library.json``.
+
+    Raises
+    ------
+    InputError
+        It is missing (the directory is not a library) or cannot be read.
+    """
+    manifest = Path(directory) / MANIFEST_NAME
+    if not manifest.is_file():
+        raise InputError(f"not a drake-lfd library: {MANIFEST_NAME} is missing", file=directory)
+    try:
+        return manifest.read_bytes()
+    except OSError as error:
+        raise _manifest_error(f"cannot read: {error}", manifest) from None
+
+
+def read_manifest(directory, *, check_logs=True, data=None) -> Manifest:
     """Reads and checks ``directory/library.json``.
 
     ``check_logs=False`` skips only the check that every entry's joint log exists (what
-    ``library remove`` needs to drop an entry whose log was deleted by hand).
+    ``library remove`` needs to drop an entry whose log was deleted by hand). ``data``:
+    the file's bytes, when the caller has read them (:func:`read_manifest_bytes`).
 
     Raises
     ------
@@ -267,10 +286,10 @@ def read_manifest(directory, *, check_logs=True) -> Manifest:
     """
     directory = Path(directory)
     manifest = directory / MANIFEST_NAME
-    if not manifest.is_file():
-        raise InputError(f"not a drake-lfd library: {MANIFEST_NAME} is missing", file=directory)
+    if data is None:
+        data = read_manifest_bytes(directory)
     try:
-        data = json.loads(manifest.read_text(encoding="utf-8"))
+        data = json.loads(data.decode("utf-8"))
     except json.JSONDecodeError as error:
         raise _manifest_error(
             f"not valid JSON ({error.msg})", manifest, f"line {error.lineno} column {error.colno}"
@@ -355,5 +374,8 @@ def manifest_text(manifest: Manifest) -> str:
 
 
 def write_manifest(directory, manifest: Manifest):
-    """Replaces ``directory/library.json`` atomically (old or new, never half of one)."""
-    atomic_write_bytes(Path(directory) / MANIFEST_NAME, manifest_text(manifest).encode("utf-8"))
+    """Replaces ``directory/library.json`` atomically (old or new, never half of one);
+    returns the bytes written."""
+    data = manifest_text(manifest).encode("utf-8")
+    atomic_write_bytes(Path(directory) / MANIFEST_NAME, data)
+    return data
