@@ -453,3 +453,23 @@ def test_a_crash_while_adding_many_adds_none_of_them(library, tmp_path, monkeypa
     monkeypatch.undo()
     assert tree_digest(root) == before
     assert mut.Library.open(root).names == ("screw_cw", "pour")
+
+
+def test_one_feature_is_read_by_name_from_the_cache(library, tmp_path, monkeypatch):
+    """Reading one demonstration's feature reads its row, not the whole cache, and no log
+    is recomputed."""
+    root = tmp_path / "lib"
+    dut = mut.Library.open(root)
+    monkeypatch.setattr(mut.Library, "_compute_feature", lambda self, demo: pytest.fail("recomputed"))
+    queries = []
+    real_connect = sqlite3.connect
+
+    def connect(*args, **kwargs):
+        connection = real_connect(*args, **kwargs)
+        connection.set_trace_callback(queries.append)
+        return connection
+
+    monkeypatch.setattr(sqlite3, "connect", connect)
+    feature = dut.feature("pour")
+    assert any("WHERE name IN" in query for query in queries)
+    np.testing.assert_array_equal(feature.deltas.ravel(), np.frombuffer(cache_rows(root)["pour"][3]))

@@ -77,6 +77,8 @@ JOURNAL_SUFFIX = "-journal"
 #: Where along a feature (fractions of its deltas) a listing shows it (``library show``):
 #: each row stores the deltas' rotation and translation there, so a listing reads no feature.
 SUMMARY_FRACTIONS = (0.0, 0.5, 0.75)
+# Up to this many rows are read by name; more, by reading the whole table once.
+_FEW = 100
 # Seconds a reader or writer waits for SQLite's own lock before giving up on the cache.
 _BUSY_TIMEOUT_S = 30.0
 # The feature's arrays, in the order of the row's columns.
@@ -248,7 +250,11 @@ def read_features(path, wanted, parts=None) -> dict:
         if connection is None or not wanted:
             return found
         try:
-            cursor = connection.execute(f"SELECT name, feature_key, num_deltas, {', '.join(chosen)} FROM demos")
+            query = f"SELECT name, feature_key, num_deltas, {', '.join(chosen)} FROM demos"
+            if len(wanted) <= _FEW:  # a few: read their rows only, not every feature of the library
+                cursor = connection.execute(f"{query} WHERE name IN ({', '.join('?' * len(wanted))})", list(wanted))
+            else:
+                cursor = connection.execute(query)
             for row in cursor:
                 name, key, num_deltas = row[0], row[1], row[2]
                 if wanted.get(name) != key:

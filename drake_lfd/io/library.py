@@ -712,7 +712,8 @@ class Library:
         order), as :meth:`feature` gives them, read from the cache in one query; writes
         nothing."""
         names = self.names if names is None else tuple(names)
-        records = self._feature_records(names)
+        with collection_paused():  # thousands of features and their arrays, no cycles
+            records = self._feature_records(names)
         return {name: records[name].feature for name in names}
 
     def feature_summaries(self, names=None):
