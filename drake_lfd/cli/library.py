@@ -323,8 +323,8 @@ _BAD_LOG = "log refused"
 
 
 def _logs_in_folder(folder):
-    """The logs directly in ``folder``, sorted: its *.csv and *.bag files and ROS 2 bag
-    directories."""
+    """The logs directly in ``folder``, sorted: its ``*.csv`` and ``*.bag`` files and ROS 2
+    bag directories."""
     found = []
     for child in sorted(folder.iterdir()):
         if child.is_dir() and is_bag(child):
@@ -340,8 +340,8 @@ def find_logs(arguments):
     Parameters
     ----------
     arguments : sequence of str
-        Log files (a ROS 2 bag directory counts as one), folders (their *.csv and *.bag
-        files and ROS 2 bag directories, not their subfolders) and glob patterns (``*``,
+        Log files (a ROS 2 bag directory counts as one), folders (their ``*.csv`` and
+        ``*.bag`` files and ROS 2 bag directories, not their subfolders) and glob patterns (``*``,
         ``?``, ``[``; ``**`` reaches into subfolders), whose matches are taken the same way.
 
     Returns
