@@ -4,7 +4,9 @@ One SQLite database per library (Python's ``sqlite3``), derived data that may be
 deleted. It has one row per demonstration (:class:`CacheRow`): the identity of the
 demonstration's joint log when it was last read (:class:`LogStamp`: size, modification
 and change times in nanoseconds, inode), the sha256 of its bytes, the sample count and
-duration read from it, the feature key (:func:`cache_key`) and the feature's arrays.
+duration read from it, the feature key (:func:`cache_key`), the feature's arrays, and
+the few numbers of it that a listing shows (:data:`SUMMARY_FRACTIONS`), so that listing
+10,000 demonstrations reads no feature.
 
 What the rows are trusted for (the library, ``io/library.py``, decides when):
 
