@@ -168,7 +168,8 @@ def inspect_library(root, sources):
         return result
     result["names"] = list(library.names)
     listed = {entry.file for entry in library.entries}
-    listed |= {f"cache/{name}.npz" for name in library.names}
+    listed.add("cache/features.sqlite")  # the feature cache, one database for the library
+    listed |= {str(p.relative_to(root)) for p in _temporaries(root)}  # counted as temporaries
     for sub in ("demos", "cache"):
         if (root / sub).is_dir():
             for path in (root / sub).iterdir():

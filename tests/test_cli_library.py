@@ -189,3 +189,127 @@ def test_refusals_exit_2_with_one_line(library, tmp_path, capsys, argv, expected
     (line,) = capsys.readouterr().err.splitlines()
     assert expected in line
     assert tree_digest(library) == before
+
+
+# ------------------------------------------------------------------------- bulk add
+
+
+def write_logs(folder, names, seed=10):
+    folder.mkdir(parents=True, exist_ok=True)
+    for index, name in enumerate(names):
+        (folder / f"{name}.csv").write_text(log_text(seed + index))
+    return folder
+
+
+def test_bulk_add_of_a_folder_and_a_glob_names_each_log_after_its_stem(library, tmp_path, capsys):
+    write_logs(tmp_path / "logs", ["alpha", "beta"])
+    write_logs(tmp_path / "more", ["gamma", "delta"], seed=20)
+    (tmp_path / "logs" / "notes.txt").write_text("not a log")
+    status = main(["library", "add", str(library), str(tmp_path / "logs"), str(tmp_path / "more" / "*.csv")])
+    captured = capsys.readouterr()
+    assert status == 0, captured.err
+    assert captured.err == ""  # no progress lines when stderr is not a terminal, no refusals
+    assert captured.out.splitlines()[-1] == f"added 4 of 4 logs to {library.resolve()}"
+    from drake_lfd.io.library import Library
+
+    opened = Library.open(library)
+    assert opened.names == ("first", "alpha", "beta", "delta", "gamma")  # folder sorted, then the glob sorted
+    stored = read_rtde_csv(opened.log_path("gamma"))[0]
+    np.testing.assert_array_equal(stored.joint_positions, read_rtde_csv(tmp_path / "more" / "gamma.csv")[0].joint_positions)
+    assert opened.write_feature_caches() == ()  # every added one has its cache row
+
+
+def test_bulk_add_refuses_each_bad_log_with_one_line_and_adds_the_rest(library, tmp_path, capsys):
+    logs = write_logs(tmp_path / "logs", ["good_1", "good_2", "first", "Twin", "twin"])
+    (logs / "bad name.csv").write_text(log_text(3))
+    (logs / "broken.csv").write_text(bad_logs()["nan"][0])
+    status = main(["library", "add", str(library), str(logs), str(tmp_path / "absent.csv")])
+    captured = capsys.readouterr()
+    assert status == 2
+    errors = captured.err.splitlines()
+    assert len(errors) == 5 and "Traceback" not in captured.err
+    expected = {
+        str(tmp_path / "absent.csv"): "no such file",
+        str(logs / "bad name.csv"): "invalid demonstration name 'bad name'",
+        str(logs / "broken.csv"): "line 4, column actual_q_2: nan is not a finite number",
+        str(logs / "first.csv"): "the library has a demonstration named 'first' already",
+        str(logs / "twin.csv"): "its name 'twin' is also the name of",
+    }
+    for line in errors:
+        path = line.removeprefix("drake-lfd library: refused ").split(": ")[0]
+        assert expected.pop(path) in line, line
+    assert expected == {}
+    assert captured.out.splitlines()[-1] == (
+        f"added 3 of 8 logs to {library.resolve()}; refused 5: 1 not found, 1 file name not a demonstration name, "
+        "1 log refused, 1 name already in the library, 1 name repeated in this add"
+    )
+    from drake_lfd.io.library import Library
+
+    assert Library.open(library).names == ("first", "Twin", "good_1", "good_2")
+    # Nothing of a refused log was written.
+    assert sorted(p.name for p in (library / "demos").iterdir()) == ["Twin.csv", "first.csv", "good_1.csv", "good_2.csv"]
+
+
+def test_bulk_add_to_a_new_library_applies_the_options_to_every_log(tmp_path, capsys):
+    logs = write_logs(tmp_path / "logs", ["one", "two", "three"])
+    root = tmp_path / "new"
+    assert main(["library", "add", str(root), str(logs), "--start", "0.5", "--end", "1.5",
+                 "--description", "cut", *IDENTITY]) == 0
+    from drake_lfd.io.library import Library
+
+    opened = Library.open(root)
+    assert opened.names == ("one", "three", "two")
+    for entry in opened.entries:
+        assert entry.duration_s == pytest.approx(1.0, abs=0.06) and entry.description == "cut"
+    capsys.readouterr()
+
+
+def test_bulk_add_where_every_log_is_refused_creates_nothing(tmp_path, capsys):
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    (logs / "broken.csv").write_text("")
+    root = tmp_path / "new" / "lib"
+    assert main(["library", "add", str(root), str(logs), *IDENTITY]) == 2
+    captured = capsys.readouterr()
+    assert captured.err.splitlines() == [f"drake-lfd library: refused {logs / 'broken.csv'}: the file is empty; "
+                                         "expected an RTDE CSV log with a header row"]
+    assert "refused 1: 1 log refused (no library was created)" in captured.out
+    assert not (tmp_path / "new").exists()
+    # A folder without logs is one error line, exit 2.
+    assert main(["library", "add", str(root), str(tmp_path / "logs" / "*.bag"), *IDENTITY]) == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert "found no logs in" in line
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["library", "add", "{lib}", "{tmp}/a.csv", "{tmp}/b.csv", "--name", "x"], "names one demonstration but 2 logs"),
+    (["library", "add", "paper5", "{tmp}/a.csv"], "drake-lfd library copy paper5 DIR"),
+])
+def test_bulk_add_refusals_of_the_whole_command(library, tmp_path, capsys, argv, expected):
+    for name in ("a", "b"):
+        (tmp_path / f"{name}.csv").write_text(log_text(5))
+    before = tree_digest(library)
+    assert main([a.format(lib=library, tmp=tmp_path) for a in argv]) == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert expected in line
+    assert tree_digest(library) == before
+
+
+def test_progress_bar_redraws_on_a_terminal_and_is_quiet_otherwise():
+    import io
+
+    from drake_lfd.cli.progress import ProgressBar
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    terminal, pipe = Terminal(), io.StringIO()
+    for stream in (terminal, pipe):
+        bar = ProgressBar("adding", 3, stream=stream, quiet_unless_terminal=True)
+        for done in (1, 2, 3):
+            bar.update(done)
+        bar.close()
+    assert pipe.getvalue() == ""
+    assert terminal.getvalue().startswith("\radding [") and "3/3" in terminal.getvalue()
+    assert terminal.getvalue().endswith("\n")

@@ -5,6 +5,7 @@ import hashlib
 import json
 import math
 import os
+import sqlite3
 
 import numpy as np
 import pytest
@@ -43,6 +44,24 @@ def tree_digest(root):
     return digest.hexdigest()
 
 
+def cache_rows(root):
+    """Name -> the feature cache's row (name, sha256 of the log, feature key, deltas blob)."""
+    path = root / "cache" / "features.sqlite"
+    if not path.exists():
+        return {}
+    with sqlite3.connect(path) as connection:
+        rows = connection.execute("SELECT name, sha256, feature_key, deltas FROM demos").fetchall()
+    connection.close()
+    return {row[0]: row for row in rows}
+
+
+def spoil_cache_row(root, name, **columns):
+    with sqlite3.connect(root / "cache" / "features.sqlite") as connection:
+        for column, value in columns.items():
+            connection.execute(f"UPDATE demos SET {column} = ? WHERE name = ?", (value, name))
+    connection.close()
+
+
 @pytest.fixture
 def library(tmp_path):
     dut = mut.Library.create(tmp_path / "lib", X_tool0_E=X_TOOL0_E)
@@ -76,7 +95,7 @@ def test_add_then_open_round_trips(library, tmp_path):
 
 def test_features_recomputed_from_logs_equal_cached(library, tmp_path):
     root = tmp_path / "lib"
-    assert (root / "cache" / "pour.npz").is_file()
+    assert sorted(cache_rows(root)) == ["pour", "screw_cw"]
     cached = mut.Library.open(root).feature("pour")
     # Independently: FK of the log with the library's frame, then Feature.from_poses.
     kinematics = UR5eKinematics(X_tool0_E=X_TOOL0_E)
@@ -90,25 +109,33 @@ def test_features_recomputed_from_logs_equal_cached(library, tmp_path):
 
 def test_stale_or_missing_cache_is_recomputed_and_rewritten(library, tmp_path):
     root = tmp_path / "lib"
-    cache = root / "cache" / "pour.npz"
+    cache = root / "cache" / "features.sqlite"
     reference = np.array(mut.Library.open(root).feature("pour").deltas)
-    fresh = cache.read_bytes()
-    cache.write_bytes(b"garbage")
+    fresh = cache_rows(root)
+    # A damaged row (its arrays are not a feature) is recomputed, and rewritten on request.
+    spoil_cache_row(root, "pour", deltas=b"garbage")
     dut = mut.Library.open(root)
     np.testing.assert_array_equal(dut.feature("pour").deltas, reference)
-    assert cache.read_bytes() == b"garbage"  # reading writes nothing
+    assert cache_rows(root)["pour"][3] == b"garbage"  # reading writes nothing
     assert dut.write_feature_caches() == ("pour",)
-    assert cache.read_bytes() == fresh
-    assert dut.write_feature_caches() == ()  # fresh caches are left alone
-    # A cache whose key does not match (another log) is not trusted.
-    cache.write_bytes((root / "cache" / "screw_cw.npz").read_bytes())
+    assert cache_rows(root) == fresh
+    assert dut.write_feature_caches() == ()  # fresh rows are left alone
+    assert mut.Library.open(root).write_feature_caches() == ()
+    # A row whose key does not match (another log's feature) is not trusted.
+    screw = cache_rows(root)["screw_cw"]
+    spoil_cache_row(root, "pour", feature_key=screw[2], deltas=screw[3])
     np.testing.assert_array_equal(mut.Library.open(root).feature("pour").deltas, reference)
-    cache.unlink()
-    dut = mut.Library.open(root)
-    np.testing.assert_array_equal(dut.feature("pour").deltas, reference)
-    assert not cache.exists()
-    assert dut.write_feature_caches() == ("pour",)
-    assert cache.read_bytes() == fresh
+    # A file that is not a database, or none at all: every feature recomputed, nothing written.
+    for damage in ("garbage", "delete"):
+        if damage == "garbage":
+            cache.write_bytes(b"garbage")
+        else:
+            cache.unlink()
+        dut = mut.Library.open(root)
+        np.testing.assert_array_equal(dut.feature("pour").deltas, reference)
+        assert cache.exists() == (damage == "garbage")
+        assert dut.write_feature_caches() == ("screw_cw", "pour")
+        assert cache_rows(root) == fresh
 
 
 def test_reading_a_library_writes_nothing(library, tmp_path):
@@ -140,7 +167,7 @@ def test_remove_updates_manifest_and_deletes_log(library, tmp_path):
     assert library.names == ("pour",)
     assert mut.Library.open(root).names == ("pour",)
     assert not (root / "demos" / "screw_cw.csv").exists()
-    assert not (root / "cache" / "screw_cw.npz").exists()
+    assert sorted(cache_rows(root)) == ["pour"]
     with pytest.raises(InputError, match="no demonstration 'screw_cw'"):
         library.remove("screw_cw")
 
@@ -373,3 +400,76 @@ def test_pose_json_refusals_name_the_field(value, field):
     with pytest.raises(InputError) as info:
         rigid_transform_from_pose_json(value, file="f.json", field="X")
     assert str(info.value).startswith(f"f.json: {field}: ")
+
+
+# ------------------------------------------------------------ many demonstrations
+
+
+def test_open_reads_no_log_whose_stamp_is_its_cache_row(library, tmp_path, monkeypatch):
+    """The cache row vouches for an unchanged log (size, times, inode); a log touched since
+    is read and checked again, and one edited by hand is refused as before."""
+    root = tmp_path / "lib"
+    read = []
+    real = mut.log_sample_summary
+    monkeypatch.setattr(mut, "log_sample_summary", lambda data, path: read.append(str(path)) or real(data, path))
+    assert mut.Library.open(root).names == ("screw_cw", "pour")
+    assert read == []
+    log = root / "demos" / "pour.csv"
+    os.utime(log, ns=(1, 1))  # the same bytes, another stamp
+    assert mut.Library.open(root).names == ("screw_cw", "pour")
+    assert read == [str(log)]
+    log.write_text("\n".join(log.read_text().splitlines()[:-1]) + "\n")  # one sample less
+    with pytest.raises(InputError, match=r"demos\[1\].samples: is 60 but the joint log demos/pour.csv has 59"):
+        mut.Library.open(root)
+
+
+def test_many_demonstrations_are_added_in_one_turn_of_the_lock(library, tmp_path):
+    root = tmp_path / "lib"
+    pending = [library.prepare(make_demo(10 + i), f"bulk{i}") for i in range(12)]  # >= 8: one sync for all
+    pending.append(library.prepare(make_demo(30), "POUR"))  # taken, ignoring case
+    pending.append(library.prepare(make_demo(31), "bulk3"))  # repeated
+    added, refused = library.add_prepared(pending)
+    assert [entry.name for entry in added] == [f"bulk{i}" for i in range(12)]
+    assert [(position, "already" in str(error)) for position, error in refused] == [(12, True), (13, True)]
+    reopened = mut.Library.open(root)
+    assert reopened.names == ("screw_cw", "pour", *(f"bulk{i}" for i in range(12)))
+    np.testing.assert_array_equal(reopened.demonstration("bulk7").joint_positions, make_demo(17).joint_positions)
+    assert sorted(cache_rows(root)) == sorted(reopened.names)
+    features = mut.library_features(reopened)
+    np.testing.assert_array_equal(features["bulk7"].deltas, pending[7].feature.deltas)
+
+
+def test_a_crash_while_adding_many_adds_none_of_them(library, tmp_path, monkeypatch):
+    root = tmp_path / "lib"
+    before = tree_digest(root)
+    pending = [library.prepare(make_demo(40 + i), f"many{i}") for i in range(9)]
+
+    def crash(*args):
+        raise Crash("power cut")
+
+    monkeypatch.setattr(mut, "write_manifest", crash)
+    with pytest.raises(Crash):
+        library.add_prepared(pending)
+    monkeypatch.undo()
+    assert tree_digest(root) == before
+    assert mut.Library.open(root).names == ("screw_cw", "pour")
+
+
+def test_one_feature_is_read_by_name_from_the_cache(library, tmp_path, monkeypatch):
+    """Reading one demonstration's feature reads its row, not the whole cache, and no log
+    is recomputed."""
+    root = tmp_path / "lib"
+    dut = mut.Library.open(root)
+    monkeypatch.setattr(mut.Library, "_compute_feature", lambda self, demo: pytest.fail("recomputed"))
+    queries = []
+    real_connect = sqlite3.connect
+
+    def connect(*args, **kwargs):
+        connection = real_connect(*args, **kwargs)
+        connection.set_trace_callback(queries.append)
+        return connection
+
+    monkeypatch.setattr(sqlite3, "connect", connect)
+    feature = dut.feature("pour")
+    assert any("WHERE name IN" in query for query in queries)
+    np.testing.assert_array_equal(feature.deltas.ravel(), np.frombuffer(cache_rows(root)["pour"][3]))

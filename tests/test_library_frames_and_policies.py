@@ -198,7 +198,8 @@ def test_copy_is_editable(tmp_path, capsys, slide_csv):
     assert copy.entries == original.entries
     assert tool_frame_options(copy.X_tool0_E) == PAPER_FRAME
     assert feature_hashes(library_features(copy)) == feature_hashes(library_features(original))
-    assert sorted(p.name for p in (mine / "cache").iterdir()) == sorted(f"{n}.npz" for n in original.names)
+    assert sorted(p.name for p in (mine / "cache").iterdir()) == ["features.sqlite"]  # fresh, one row each
+    assert sorted(Library.open(mine)._rows) == sorted(original.names) and Library.open(mine).write_feature_caches() == ()
     assert sorted(p.name for p in mine.parent.iterdir()) == ["mylib5"]  # no staging directory left
     # Editable: add (the frame comes from the library) and remove.
     assert run(capsys, "library", "add", mine, slide_csv, "--name", "slide")[0] == 0

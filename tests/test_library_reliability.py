@@ -283,6 +283,7 @@ def test_remove_drops_an_entry_whose_log_is_missing(library, tmp_path, capsys):
     assert "removed 'first'" in capsys.readouterr().out
     assert Library.open(library).names == ("second",)
     assert not (library / "cache" / "first.npz").exists()
+    assert "first" not in Library.open(library)._rows  # its feature cache row went with it
     assert main(["library", "show", str(library), "--json", str(tmp_path / "show.json")]) == 0
     assert [d["name"] for d in json.loads((tmp_path / "show.json").read_text())["demos"]] == ["second"]
 

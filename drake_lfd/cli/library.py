@@ -17,6 +17,12 @@ A thin front end over :mod:`drake_lfd.io.library` (documented in docs/cli.rst):
   and leaves the library exactly as it was (a refused add to a new directory creates
   nothing). Concurrent ``add`` and ``remove`` on one library take turns (the library's
   lock, :mod:`drake_lfd.io.library`).
+- ``library add LIB DEMO_OR_DIR_OR_GLOB...`` without ``--name`` adds every log the
+  arguments name (files, folders, glob patterns: :func:`find_logs`), each named after
+  its file's stem, the other options applying to all; a progress bar on a terminal;
+  every valid log added (in batches, each one turn of the library's lock), each other
+  one refused with one line naming it and why, then one summary line; exit 0 when all
+  were added, 2 when any was refused.
 - ``library show LIB [--json OUT]`` prints a table: per demonstration its samples,
   duration and the rotation of its feature at the start, middle and three quarters of
   the way (``delta`` at 0, 50 and 75 % of the resampled motion, like the paper's Table
@@ -39,23 +45,31 @@ other commands (one module each in ``drake_lfd/cli``).
 
 from __future__ import annotations
 
+import glob
 import math
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from drake_lfd.core.dual_quaternion import axis_angle_from_quaternion
-from drake_lfd.core.errors import EXIT_OK, InputError
+from drake_lfd.core.errors import EXIT_BAD_INPUT, EXIT_OK, InputError
 from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
 from drake_lfd.cli.argument_checks import prepare_output
+from drake_lfd.cli.progress import ProgressBar
 from drake_lfd.io.atomic_files import atomic_write_bytes
-from drake_lfd.io.log_import import read_demonstration_log
+from drake_lfd.io.feature_cache import SUMMARY_FRACTIONS as CACHED_SUMMARY_FRACTIONS
+from drake_lfd.io.feature_cache import feature_summary_rows, summary_indices
+from drake_lfd.io.log_import import check_time_window, read_demonstration_log
+from drake_lfd.io.rosbag_logs import bag_location, is_bag
 from drake_lfd.io.library import (
     END_EFFECTOR_FRAME_TOLERANCE,
+    DemonstrationPreparer,
     Library,
     bundled_library_names,
     bundled_library_paths,
+    collection_paused,
     copy_library,
     is_unused_library_directory,
     tool_frame_options,
@@ -69,6 +83,8 @@ __all__ = [
     "SUMMARY_FRACTIONS",
     "add_parser",
     "run_add",
+    "run_bulk_add",
+    "find_logs",
     "feature_summary",
     "library_listing",
     "format_listing",
@@ -81,8 +97,9 @@ __all__ = [
 # What a new library's frame is asked for with (docs/cli.rst, library add).
 IDENTITY_FRAME_OPTIONS = "--tool0-E-p 0 0 0 --tool0-E-euler-zyx 0 0 0"
 
-# Where along the feature ``show`` samples its rotation (fractions of the deltas).
-SUMMARY_FRACTIONS = (("start", 0.0), ("middle", 0.5), ("late", 0.75))
+# Where along the feature ``show`` samples its rotation (fractions of the deltas; the feature
+# cache stores each feature's numbers there, io/feature_cache.py).
+SUMMARY_FRACTIONS = tuple(zip(("start", "middle", "late"), CACHED_SUMMARY_FRACTIONS))
 
 
 def add_parser(subparsers):
@@ -96,9 +113,15 @@ def add_parser(subparsers):
 
     add = actions.add_parser(
         "add",
-        help="add a demonstration (RTDE CSV joint log, or ROS 1/2 bag of sensor_msgs/JointState) to a library",
+        help="add a demonstration (RTDE CSV joint log, or ROS 1/2 bag of sensor_msgs/JointState) to a library, "
+             "or many at once",
         description=(
-            "Add a demonstration to LIB. LIB is created when it does not exist; its end-effector "
+            "Add a demonstration to LIB (DEMO --name NAME), or, without --name, every log that the DEMO "
+            "arguments name: log files, folders (their *.csv and *.bag files and ROS 2 bag directories) and "
+            "glob patterns ('logs/*.csv'), each named after its file's stem, with a progress bar; every valid "
+            "log is added, each other one refused with one line naming it and why, then one summary line "
+            "(exit 0 when all were added, 2 when any was refused). The other options apply to every log of "
+            "such a bulk add. LIB is created when it does not exist; its end-effector "
             "frame X_tool0_E must then be given with both --tool0-E-p and --tool0-E-euler-zyx "
             f"(E = tool0 is {IDENTITY_FRAME_OPTIONS}). An existing library keeps its frame."
         ),
@@ -107,11 +130,14 @@ def add_parser(subparsers):
     add.add_argument(
         "log",
         metavar="DEMO",
+        nargs="+",
         help="UR RTDE CSV joint log (actual_q_0..5, and timestamp or --rate), a ROS 1 .bag file or a ROS 2 bag "
-             "directory (sqlite3 or mcap) with sensor_msgs/JointState",
+             "directory (sqlite3 or mcap) with sensor_msgs/JointState; without --name, any number of logs, "
+             "folders of logs and glob patterns",
     )
-    add.add_argument("--name", required=True, help="demonstration name: letters, digits, '_', '-'")
-    add.add_argument("--description", default="", help="what was demonstrated")
+    add.add_argument("--name", help="demonstration name: letters, digits, '_', '-' (one DEMO); without it, "
+                                    "every log is named after its file's stem")
+    add.add_argument("--description", default="", help="what was demonstrated (bulk add: the same for every log)")
     add.add_argument(
         "--tool0-E-p",
         nargs=3,
@@ -238,6 +264,16 @@ def _is_new_library(path_text):
 
 
 def run_add(args):
+    if args.name is None:
+        return run_bulk_add(args)
+    if len(args.log) != 1:
+        raise InputError(
+            f"names one demonstration but {len(args.log)} logs were given; add one log with --name, or leave "
+            "--name out to add every log, each named after its file's stem",
+            file=args.library,
+            field="--name",
+        )
+    args.log = args.log[0]
     p, euler = _requested_tool_frame(args)
     # Everything that can refuse the add runs before the library is touched.
     new = _is_new_library(args.library)
@@ -270,6 +306,208 @@ def run_add(args):
     return EXIT_OK
 
 
+# --------------------------------------------------------------------------- bulk add
+
+# Prepared demonstrations per turn of the library's lock (each turn one manifest write):
+# other writers wait at most one batch, and a killed bulk add keeps the batches before.
+BULK_BATCH = 500
+# Suffixes of the log files a folder is searched for (ROS 2 bags are directories).
+LOG_SUFFIXES = (".csv", ".bag")
+
+# Why a log of a bulk add was refused, as the summary line counts them.
+_NOT_FOUND = "not found"
+_BAD_NAME = "file name not a demonstration name"
+_REPEATED_NAME = "name repeated in this add"
+_NAME_TAKEN = "name already in the library"
+_BAD_LOG = "log refused"
+
+
+def _logs_in_folder(folder):
+    """The logs directly in ``folder``, sorted: its ``*.csv`` and ``*.bag`` files and ROS 2
+    bag directories."""
+    found = []
+    for child in sorted(folder.iterdir()):
+        if child.is_dir() and is_bag(child):
+            found.append(child)
+        elif child.is_file() and child.suffix.lower() in LOG_SUFFIXES and not child.name.startswith("."):
+            found.append(child)
+    return found
+
+
+def find_logs(arguments):
+    """The logs the DEMO arguments of a bulk add name, in order, each once.
+
+    Parameters
+    ----------
+    arguments : sequence of str
+        Log files (a ROS 2 bag directory counts as one), folders (their ``*.csv`` and
+        ``*.bag`` files and ROS 2 bag directories, not their subfolders) and glob patterns (``*``,
+        ``?``, ``[``; ``**`` reaches into subfolders), whose matches are taken the same way.
+
+    Returns
+    -------
+    logs : list of Path
+    missing : list of str
+        Arguments that name nothing.
+    """
+    logs, missing, seen = [], [], set()
+
+    def take(path):
+        if path.is_dir() and not is_bag(path):
+            for log in _logs_in_folder(path):
+                take(log)
+            return
+        key = os.path.realpath(path)
+        if key not in seen:
+            seen.add(key)
+            logs.append(path)
+
+    for argument in arguments:
+        path = Path(argument)
+        if path.exists():
+            take(path)
+        elif glob.has_magic(argument):
+            matches = sorted(glob.glob(argument, recursive=True))
+            for match in matches:
+                take(Path(match))
+            if not matches:
+                missing.append(argument)
+        else:
+            missing.append(argument)
+    return logs, missing
+
+
+def _log_name(path):
+    """A bulk-added log's demonstration name: its file's stem (a ROS 2 bag: its directory's
+    name)."""
+    location = bag_location(path)
+    if location is not None and location.is_dir():
+        return location.name
+    return path.stem
+
+
+def _reason(error, path):
+    """An error's text without the log's own name in front (the refusal line names it)."""
+    text = str(error)
+    prefix = f"{path}: "
+    return text[len(prefix):] if text.startswith(prefix) else text
+
+
+class _BulkAdd:
+    """The state of one bulk add: the library (None until the first log is accepted, when
+    a new one is created), what was added and refused, and the logs' messages."""
+
+    def __init__(self, args, X_tool0_E_new):
+        self.args = args
+        self.library = None if X_tool0_E_new is not None else Library.open(args.library)
+        self.X_tool0_E_new = X_tool0_E_new
+        X_tool0_E = X_tool0_E_new if self.library is None else self.library.X_tool0_E
+        label = Path(args.library).absolute() if self.library is None else self.library.label
+        self.preparer = DemonstrationPreparer(X_tool0_E, label)
+        self.added = 0
+        self.refused = []  # (path, kind, reason)
+        self.messages = []  # (stream, text): warnings and reports of the logs added
+        self.pending = []  # (path, prepared, warnings, reports)
+
+    def refuse(self, path, kind, reason):
+        self.refused.append((path, kind, reason))
+
+    def commit(self):
+        """Adds the pending demonstrations in one turn of the library's lock."""
+        if not self.pending:
+            return
+        if self.library is None:
+            self.library = Library.open_or_create(self.args.library, self.X_tool0_E_new)
+        added, refused = self.library.add_prepared([item for _, item, _, _ in self.pending])
+        taken = {position for position, _ in refused}
+        for position, error in refused:
+            self.refuse(self.pending[position][0], _NAME_TAKEN, _reason(error, self.library.label))
+        for position, (_, _, warnings, reports) in enumerate(self.pending):
+            if position not in taken:
+                self.messages += [(sys.stderr, f"drake-lfd library: warning: {warning}") for warning in warnings]
+                self.messages += [(sys.stdout, report) for report in reports]
+        self.added += len(added)
+        self.pending = []
+
+
+def run_bulk_add(args):
+    """``library add LIB DIR_OR_GLOB...`` without ``--name`` (docs/cli.rst)."""
+    p, euler = _requested_tool_frame(args)
+    new = _is_new_library(args.library)
+    X_tool0_E = _new_library_frame(args, p, euler) if new else None
+    check_time_window(args.start, args.end)
+    logs, missing = find_logs(args.log)
+    if not logs:
+        raise InputError(
+            f"found no logs in {', '.join(args.log)} (a folder's *.csv and *.bag files and ROS 2 bag directories "
+            "are added; give files, folders or glob patterns)",
+            field="DEMO",
+        )
+    bulk = _BulkAdd(args, X_tool0_E)
+    existing = set()
+    if bulk.library is not None:
+        if bulk.library.read_only:
+            bulk.library.check_writable()  # a bundled library: refused, with the hint to copy it
+        _check_same_frame(bulk.library, p, euler)
+        existing = {name.lower() for name in bulk.library.names}
+    for argument in missing:
+        bulk.refuse(argument, _NOT_FOUND, "no such file or directory, and no file matches it")
+    names = {}
+    bar = ProgressBar("adding", len(logs), quiet_unless_terminal=True)
+    for done, path in enumerate(logs, start=1):
+        _bulk_add_one(bulk, path, names, existing)
+        if len(bulk.pending) >= BULK_BATCH:
+            bulk.commit()
+        bar.update(done, f"{bulk.added + len(bulk.pending)} accepted, {len(bulk.refused)} refused")
+    bulk.commit()
+    bar.close()
+    for stream, text in bulk.messages:
+        print(text, file=stream)
+    for path, _, reason in bulk.refused:
+        print(f"drake-lfd library: refused {path}: {reason}", file=sys.stderr)
+    label = bulk.library.label if bulk.library is not None else args.library
+    summary = f"added {bulk.added} of {len(logs) + len(missing)} logs to {label}"
+    if bulk.refused:
+        counts = {}
+        for _, kind, _ in bulk.refused:
+            counts[kind] = counts.get(kind, 0) + 1
+        summary += f"; refused {len(bulk.refused)}: " + ", ".join(f"{n} {kind}" for kind, n in counts.items())
+        if bulk.library is None:
+            summary += " (no library was created)"
+    print(summary)
+    return EXIT_OK if not bulk.refused else EXIT_BAD_INPUT
+
+
+def _bulk_add_one(bulk, path, names, existing):
+    """Reads and checks one log of a bulk add; a valid one joins ``bulk.pending``."""
+    args = bulk.args
+    name = _log_name(path)
+    try:
+        check_demo_name(name)
+    except InputError as error:
+        bulk.refuse(path, _BAD_NAME, f"{error.problem}; rename the file, or add it alone with --name NAME")
+        return
+    if name.lower() in names:
+        bulk.refuse(path, _REPEATED_NAME, f"its name {name!r} is also the name of {names[name.lower()]}; "
+                                          "rename one of the files, or add it alone with --name NAME")
+        return
+    if name.lower() in existing:
+        bulk.refuse(path, _NAME_TAKEN, f"the library has a demonstration named {name!r} already; remove it "
+                                       "first, or rename the file")
+        return
+    try:
+        demonstration, warnings, reports = read_demonstration_log(
+            path, name=name, description=args.description, filter_runtime_state=not args.keep_all_rows,
+            rate_hz=args.rate, topic=args.topic, start_s=args.start, end_s=args.end, tcp_offset=args.tcp_offset,
+        )
+        prepared = bulk.preparer.prepare(demonstration, name, args.description, source=path)
+    except InputError as error:
+        bulk.refuse(path, _BAD_LOG, _reason(error, path))
+        return
+    names[name.lower()] = path
+    bulk.pending.append((path, prepared, warnings, reports))
+
+
 # -------------------------------------------------------------------------------- show
 
 
@@ -288,23 +526,25 @@ def feature_summary(feature):
         ``q_wxyz``, ``axis``, ``angle_rad``, ``translation_m`` (in the frame of that
         sample).
     """
-    count = len(feature)
-    rows = []
-    for label, fraction in SUMMARY_FRACTIONS:
-        index = int(round(fraction * (count - 1)))
-        q = np.asarray(feature.rotations[index], dtype=float)
-        axis, angle = axis_angle_from_quaternion(q)
-        rows.append(
-            {
-                "label": label,
-                "delta": index + 1,
-                "q_wxyz": [float(v) for v in q],
-                "axis": [float(v) for v in axis],
-                "angle_rad": float(angle),
-                "translation_m": [float(v) for v in feature.translations[index]],
-            }
-        )
-    return rows
+    return _feature_summaries([(len(feature), *feature_summary_rows(feature))])[0]
+
+
+def _feature_summaries(summaries):
+    """:func:`feature_summary` of many features, given as ``(num_deltas, rotations,
+    translations)`` (``Library.feature_summaries``); the axis-angles of all at once."""
+    if not summaries:
+        return []
+    axis, angle = axis_angle_from_quaternion(np.array([rotations for _, rotations, _ in summaries], dtype=float))
+    axis, angle = axis.tolist(), angle.tolist()
+    labels = [label for label, _ in SUMMARY_FRACTIONS]
+    return [
+        [
+            {"label": label, "delta": index + 1, "q_wxyz": list(rotations[j]), "axis": axis[i][j],
+             "angle_rad": angle[i][j], "translation_m": list(translations[j])}
+            for j, (label, index) in enumerate(zip(labels, summary_indices(num_deltas)))
+        ]
+        for i, (num_deltas, rotations, translations) in enumerate(summaries)
+    ]
 
 
 def bundled_libraries_text():
@@ -322,20 +562,23 @@ def library_listing(library):
     """The ``library show --json`` document (docs/cli.rst), plus optional fields:
     ``read_only``, ``directory``, ``bundled_libraries``, and per demonstration ``added``
     and ``feature`` (resampled sample count and :func:`feature_summary`)."""
-    demos = []
-    for entry in library.entries:
-        feature = library.feature(entry.name)
-        demos.append(
-            {
-                "name": entry.name,
-                "path": str(library.log_path(entry.name)),
-                "samples": entry.samples,
-                "duration_s": entry.duration_s,
-                "description": entry.description,
-                "added": entry.added,
-                "feature": {"samples": len(feature) + 1, "summary": feature_summary(feature)},
-            }
-        )
+    # One query for all, 168 bytes of each feature: not one file (or feature) per demonstration.
+    rows = library.feature_summaries()
+    entries = library.entries
+    summaries = _feature_summaries([rows[entry.name] for entry in entries])
+    directory = str(library.path)
+    demos = [
+        {
+            "name": entry.name,
+            "path": os.path.join(directory, entry.file),
+            "samples": entry.samples,
+            "duration_s": entry.duration_s,
+            "description": entry.description,
+            "added": entry.added,
+            "feature": {"samples": rows[entry.name][0] + 1, "summary": summary},
+        }
+        for entry, summary in zip(entries, summaries)
+    ]
     return {
         "library": library.label,
         "X_tool0_E": pose_json_from_rigid_transform(library.X_tool0_E),
@@ -349,6 +592,11 @@ def library_listing(library):
 
 def _format_vector(values, digits=3):
     return "(" + ", ".join(f"{v:+.{digits}f}" for v in values) + ")"
+
+
+# The rows of a listing, formatted with one %-format each (a library may list 10,000).
+_Q_FORMAT = "(%+.3f, %+.3f, %+.3f, %+.3f)"
+_AXIS_FORMAT = "(%+.2f, %+.2f, %+.2f)"
 
 
 def format_listing(listing):
@@ -379,12 +627,12 @@ def format_listing(listing):
             else:
                 head = " " * (width + 2 + 7 + 2 + 10)
             delta = f"{row['label']} ({row['delta']})"
-            translation = np.asarray(row["translation_m"])
-            length = float(np.linalg.norm(translation))
-            direction = _format_vector(translation / length, 2) if length >= 1e-3 else "(none, < 1 mm)"
+            x, y, z = row["translation_m"]
+            length = math.sqrt(x * x + y * y + z * z)
+            direction = _AXIS_FORMAT % (x / length, y / length, z / length) if length >= 1e-3 else "(none, < 1 mm)"
             lines.append(
-                f"{head}  {delta:<12}  {_format_vector(row['q_wxyz']):<34}  "
-                f"{math.degrees(row['angle_rad']):6.1f} deg about {_format_vector(row['axis'], 2)}"
+                f"{head}  {delta:<12}  {_Q_FORMAT % tuple(row['q_wxyz']):<34}  "
+                f"{math.degrees(row['angle_rad']):6.1f} deg about {_AXIS_FORMAT % tuple(row['axis'])}"
                 f"   {direction}"
             )
         if demo["description"]:
@@ -396,18 +644,21 @@ def format_listing(listing):
 def run_show(args):
     library = Library.open(args.library)
     library.write_feature_caches()  # a user's library keeps fresh caches; bundled ones none
-    listing = library_listing(library)
-    text = strict_json_text(listing, indent=2)
+    with collection_paused():  # tens of thousands of small dicts and lines, no cycles
+        listing = library_listing(library)
     if args.json == "-":
-        print(text)
+        print(strict_json_text(listing, indent=2))
         return EXIT_OK
     if args.json:
+        text = strict_json_text(listing, indent=2)
         output = prepare_output(args.json, "--json")
         try:
             atomic_write_bytes(output, (text + "\n").encode("utf-8"))
         except OSError as error:  # one line naming OUT; a full disk is exit 1 (cli/app.py)
             raise OSError(error.errno, error.strerror or str(error), str(output)) from None
-    print(format_listing(listing))
+    with collection_paused():
+        text = format_listing(listing)
+    print(text)
     return EXIT_OK
 
 

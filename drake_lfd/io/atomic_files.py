@@ -12,7 +12,11 @@ import stat
 import tempfile
 from pathlib import Path
 
-__all__ = ['fsync_directory', 'atomic_write_bytes', 'atomic_write_json']
+__all__ = ['fsync_directory', 'atomic_write_bytes', 'atomic_write_many', 'atomic_write_json']
+
+# From this many files on, atomic_write_many flushes them with one sync() of the file systems
+# instead of an fsync each (an fsync costs milliseconds: 10,000 logs would take a minute).
+SYNC_ALL_FROM_FILES = 8
 
 def fsync_directory(directory):
     try:
@@ -71,6 +75,57 @@ def atomic_write_bytes(path, data):
         raise
     fsync_directory(path.parent)
 
+
+def atomic_write_many(items):
+    """Writes several files, each atomically as :func:`atomic_write_bytes` does, with the
+    flushing batched: every temporary file is written, then flushed to disk (an fsync
+    each, or for :data:`SYNC_ALL_FROM_FILES` files or more one ``os.sync``, which on
+    Linux returns when the data is on disk), then renamed into place, then each
+    directory fsynced once. A reader sees each file old or new, never a mix; a crash
+    before the renames leaves only temporary files.
+
+    Parameters
+    ----------
+    items : sequence of (path, bytes)
+        Regular files (or new paths); every ``path`` distinct.
+
+    Raises
+    ------
+    OSError
+        Writing or renaming failed; the temporary files not yet renamed are removed
+        (files already renamed into place stay).
+    """
+    staged = []  # (temporary, path, mode)
+    renamed = 0
+    try:
+        for path, data in items:
+            path = Path(path)
+            try:
+                mode = path.stat().st_mode & 0o777
+            except FileNotFoundError:
+                mode = 0o644
+            fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+            staged.append((temporary, path, mode))
+            with os.fdopen(fd, "wb") as file:
+                file.write(data)
+                if len(items) < SYNC_ALL_FROM_FILES:
+                    file.flush()
+                    os.fsync(file.fileno())
+            os.chmod(temporary, mode)
+        if len(items) >= SYNC_ALL_FROM_FILES:
+            os.sync()
+        for temporary, path, _ in staged:
+            os.replace(temporary, path)
+            renamed += 1
+    except BaseException:
+        for temporary, _, _ in staged[renamed:]:
+            try:
+                os.unlink(temporary)
+            except FileNotFoundError:
+                pass
+        raise
+    for directory in sorted({str(Path(path).parent) for path, _ in items}):
+        fsync_directory(directory)
 
 
 def atomic_write_json(path, document) -> None:

@@ -5,7 +5,7 @@ A library is a folder a user can read and back up with ordinary tools::
     LIB/
       library.json          the manifest (io/library_manifest.py): what the library holds
       demos/<name>.csv      one joint log per demonstration, the project's RTDE-style CSV
-      cache/<name>.npz      resampled poses and feature per demonstration (derived data)
+      cache/features.sqlite the feature cache (derived data, io/feature_cache.py)
       library.lock          empty; writers hold an exclusive flock on it (file_lock.py)
 
 :class:`Library` opens, creates, reads and edits one; docs/libraries.rst documents the
@@ -16,14 +16,17 @@ the library stores the one its demonstrations were recorded with (``X_tool0_E``)
 planning a task with another frame is refused (:func:`check_end_effector_frame`).
 Features are computed by forward kinematics (with ``X_WB`` = identity: features do not
 depend on where the robot stands). Reading a feature (:meth:`Library.feature`,
-:func:`library_features`) never writes: it uses the cache file when its key is fresh
-(``io/feature_cache.py``) and recomputes from the log otherwise. Cache files are written
-only by :meth:`Library.add` and :meth:`Library.write_feature_caches` (which the command
-line calls before it uses a library).
+:meth:`Library.features`, :func:`library_features`) never writes: it uses the cache's
+row when the log's stamp is the row's and its key is fresh (``io/feature_cache.py``;
+all of a library's rows in one query) and recomputes from the log otherwise. Rows are
+written only by :meth:`Library.add_prepared` (``add``) and
+:meth:`Library.write_feature_caches` (which the command line calls before it uses a
+library).
 
 Durability: every file is written atomically (``atomic_files.atomic_write_bytes``: a
 temporary file in the same directory, flushed and fsynced, ``os.replace``, then the
-directory fsynced). ``add`` writes the log before the manifest that references it,
+directory fsynced). ``add`` writes the logs before the manifest that references them (many at once:
+:meth:`Library.add_prepared`, one turn of the lock and one manifest write),
 ``remove`` rewrites the manifest before deleting the log. A crash therefore leaves at
 worst an unreferenced log (ignored, overwritten by a later ``add`` of that name) or a
 temporary file, never a manifest pointing at a missing or partial log.
@@ -39,7 +42,9 @@ never sees a manifest without its logs. The kernel frees a dead holder's lock.
 
 Consistency: opening a library checks each entry against its log (the log exists, and
 its sample count and duration are the manifest's ``samples`` and ``duration_s``), one
-error naming the manifest and the field. ``open(..., check_logs=False)`` skips this so
+error naming the manifest and the field. A log whose stamp (size, modification and
+change times, inode) is its cache row's is not read: the row holds what it had; any
+other log is read and summarised. ``open(..., check_logs=False)`` skips this so
 ``remove`` can drop an entry whose log was deleted or damaged. Every check of a new
 demonstration runs before anything is written, so a refused ``add`` (or
 :meth:`Library.create_with`, a new library with its first demonstration) changes
@@ -61,6 +66,8 @@ from __future__ import annotations
 
 import contextlib
 import datetime
+import gc
+import hashlib
 import math
 import os
 import shutil
@@ -80,14 +87,27 @@ from drake_lfd.core.features import (
     arc_lengths_from_poses,
 )
 from drake_lfd.core.resources import bundled_library_directories
-from drake_lfd.io.atomic_files import atomic_write_bytes, fsync_directory
+from drake_lfd.io.atomic_files import atomic_write_bytes, atomic_write_many, fsync_directory
 from drake_lfd.io.demonstration_logs import (
     check_plausible_motion,
     log_sample_summary,
     read_rtde_csv,
     rtde_csv_text,
 )
-from drake_lfd.io.feature_cache import cache_key, read_feature_cache, write_feature_cache
+from drake_lfd.io.feature_cache import (
+    CACHE_NAME,
+    JOURNAL_SUFFIX,
+    CacheRow,
+    cache_context,
+    cache_key,
+    delete_rows,
+    log_stamp,
+    feature_summary_rows,
+    read_features,
+    read_rows,
+    read_summaries,
+    write_rows,
+)
 from drake_lfd.io.file_lock import LockUnavailable, exclusive_lock, shared_lock
 from drake_lfd.io.library_manifest import (
     CACHE_DIRECTORY,
@@ -99,6 +119,7 @@ from drake_lfd.io.library_manifest import (
     Manifest,
     check_demo_name,
     read_manifest,
+    read_manifest_bytes,
     write_manifest,
 )
 from drake_lfd.io.pose_records import angle_text, euler_zyx_from_rigid_transform, number_text, pose_yaml_text
@@ -113,6 +134,8 @@ __all__ = [
     "tool_frame_options",
     "is_unused_library_directory",
     "remove_stale_temporaries",
+    "collection_paused",
+    "DemonstrationPreparer",
     "Library",
     "copy_library",
     "library_features",
@@ -144,15 +167,22 @@ def _temporaries(directory):
     for sub in (DEMOS_DIRECTORY, CACHE_DIRECTORY):
         if (directory / sub).is_dir():
             found += [p for p in (directory / sub).glob(".*.tmp") if p.is_file()]
+    journal = directory / CACHE_DIRECTORY / (CACHE_NAME + JOURNAL_SUFFIX)
+    if journal.is_file():
+        found.append(journal)
     return found
 
 
 def remove_stale_temporaries(directory):
     """Deletes the temporary files (``.*.tmp``) that writers killed mid-write left in a
     library directory; call with the library's lock held (then no write is under way).
-    Returns the paths deleted."""
+    A feature cache's rollback journal is left to SQLite: the next write of the cache
+    rolls it back and deletes it (:mod:`~drake_lfd.io.feature_cache`). Returns the paths
+    deleted."""
     removed = []
     for path in _temporaries(directory):
+        if path.name.endswith(JOURNAL_SUFFIX):
+            continue
         try:
             path.unlink()
             removed.append(path)
@@ -184,6 +214,20 @@ def is_unused_library_directory(path):
 
 
 @contextlib.contextmanager
+def collection_paused():
+    """Pauses Python's cyclic garbage collector while a block builds many small objects
+    that form no cycles (a manifest's entries, a listing's rows): with 10,000
+    demonstrations its repeated scans of them took a quarter of the time."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
+@contextlib.contextmanager
 def _writing(directory, label):
     """Holds the library's exclusive lock and clears stale temporaries first."""
     with contextlib.ExitStack() as stack:
@@ -197,25 +241,33 @@ def _writing(directory, label):
         yield
 
 
-def _check_logs(directory, manifest):
-    """Each entry against its log: present, same sample count and duration."""
+def _check_logs(directory, manifest, rows):
+    """Each entry against its log: present, same sample count and duration.
+
+    A log whose stamp (size, modification and change time, inode) is its cache row's is
+    the file the row was read from, so the row's sample count and duration are the
+    log's and the log is not read again; any other log is read and summarised."""
     manifest_path = Path(directory) / MANIFEST_NAME
     for index, entry in enumerate(manifest.entries):
-        log = Path(directory) / entry.file
+        log = os.path.join(directory, entry.file)  # a string: thousands of Path joins cost more than the stats
         field = f"demos[{index}]"
         remedy = (
             f"restore the log, or drop the entry with 'drake-lfd library remove {directory} {entry.name}' "
             "and add the demonstration again"
         )
+        row = rows.get(entry.name)
         try:
-            log_bytes = log.read_bytes()
+            if row is not None and row.stamp == log_stamp(log):
+                samples, duration_s = row.samples, row.duration_s
+            else:
+                log = Path(log)
+                samples, duration_s = log_sample_summary(log.read_bytes(), log)
         except FileNotFoundError:
             raise InputError(
                 f"the joint log {entry.file} is missing; {remedy}", file=manifest_path, field=f"{field}.file"
             ) from None
         except OSError as error:
             raise InputError(f"cannot read the joint log: {error.strerror}", file=log) from None
-        samples, duration_s = log_sample_summary(log_bytes, log)
         if samples != entry.samples:
             raise InputError(
                 f"is {entry.samples} but the joint log {entry.file} has {samples} samples "
@@ -278,6 +330,37 @@ def _prepare(demonstration, name, description, *, kinematics, num_samples, rotat
     return _PendingDemo(entry, rtde_csv_text(stored).encode("utf-8"), feature)
 
 
+class DemonstrationPreparer:
+    """Checks new demonstrations and computes their features for one end-effector frame,
+    before any library is touched: what ``library add`` of many logs runs on each log
+    (:meth:`Library.prepare` uses one too).
+
+    Parameters
+    ----------
+    X_tool0_E : RigidTransform
+    label : str
+        How to name the library in errors.
+    num_samples, rotation_length_m
+        Feature parameters (``features.Feature.from_poses``).
+    """
+
+    def __init__(self, X_tool0_E, label, num_samples=DEFAULT_NUM_SAMPLES,
+                 rotation_length_m=DEFAULT_ROTATION_LENGTH_M):
+        self.kinematics = UR5eKinematics(X_tool0_E=X_tool0_E)
+        self.label = str(label)
+        self.num_samples = int(num_samples)
+        self.rotation_length_m = float(rotation_length_m)
+
+    def prepare(self, demonstration, name, description="", *, source=None):
+        """The checked demonstration, ready for :meth:`Library.add_prepared`; writes
+        nothing. Raises InputError as :meth:`Library.add` (bad name, invalid
+        demonstration, one that does not move)."""
+        return _prepare(
+            demonstration, name, description, kinematics=self.kinematics, num_samples=self.num_samples,
+            rotation_length_m=self.rotation_length_m, source=source, label=self.label,
+        )
+
+
 def bundled_library_names():
     """Names of the libraries bundled with drake-lfd (sorted; may be empty)."""
     names = set()
@@ -313,12 +396,25 @@ def tool_frame_options(X_tool0_E):
 
 
 class _FeatureRecord(NamedTuple):
-    """A demonstration's feature, the cache key it belongs to, and whether a cache file
-    with that key is on disk."""
+    """A demonstration's feature, the cache key it belongs to, whether the cache holds it
+    for the log as it is (``on_disk``), and the row that stores it."""
 
     key: str
     feature: Feature
     on_disk: bool
+    row: CacheRow | None  # None: the log changed while it was read (nothing to store)
+
+
+class _LogIdentity(NamedTuple):
+    """What a joint log is now: its stamp, sha256, sample count and duration, and its
+    bytes when they had to be read (None when its cache row vouches for it)."""
+
+    stamp: object
+    sha256: str
+    samples: int
+    duration_s: float
+    log_bytes: bytes | None
+    steady: bool  # False: the log changed while it was read
 
 
 class Library:
@@ -357,6 +453,17 @@ class Library:
         self.rotation_length_m = float(rotation_length_m)
         self._features = {}  # name -> _FeatureRecord
         self._kinematics = None  # built on first use, for X_tool0_E
+        self._preparer = None  # likewise
+        self._keys = {}  # log sha256 -> feature cache key, memoised
+        self._context = None  # feature_cache.cache_context of the frame and parameters, on first use
+        self._manifest_bytes = None  # library.json as it was when self._manifest was read from it
+        self._rows = {}  # name -> CacheRow, the feature cache's rows as read (or written) by this object
+        self._positions = {}  # name -> index into the manifest's entries
+        self._set_manifest(manifest)
+
+    def _set_manifest(self, manifest):
+        self._manifest = manifest
+        self._positions = {entry.name: index for index, entry in enumerate(manifest.entries)}
 
     # -- opening ---------------------------------------------------------------------
     @classmethod
@@ -407,17 +514,22 @@ class Library:
     @classmethod
     def _load(cls, directory, *, label, read_only, check_logs=True, **feature_parameters):
         # The shared lock keeps writers out while the manifest and the logs are compared.
-        with shared_lock(Path(directory) / LOCK_NAME):
-            manifest = read_manifest(directory, check_logs=check_logs)
+        with shared_lock(Path(directory) / LOCK_NAME), collection_paused():
+            manifest_bytes = read_manifest_bytes(directory)
+            manifest = read_manifest(directory, check_logs=check_logs, data=manifest_bytes)
+            rows = read_rows(Path(directory) / CACHE_DIRECTORY / CACHE_NAME)
             if check_logs:
-                _check_logs(directory, manifest)
-        return cls(
+                _check_logs(directory, manifest, rows)
+        library = cls(
             path=directory,
             manifest=manifest,
             label=label,
             read_only=read_only,
             **feature_parameters,
         )
+        library._rows = rows
+        library._manifest_bytes = manifest_bytes
+        return library
 
     @classmethod
     def create(cls, path, X_tool0_E=None, **feature_parameters):
@@ -501,14 +613,22 @@ class Library:
             As :meth:`create` and :meth:`add`; or the library made meanwhile has another
             end-effector frame.
         """
-        parameters = {
-            "num_samples": feature_parameters.get("num_samples", DEFAULT_NUM_SAMPLES),
-            "rotation_length_m": feature_parameters.get("rotation_length_m", DEFAULT_ROTATION_LENGTH_M),
-        }
-        _prepare(
-            demonstration, name, description, kinematics=UR5eKinematics(X_tool0_E=X_tool0_E),
-            source=source, label=str(Path(path).absolute()), **parameters,
+        DemonstrationPreparer(X_tool0_E, Path(path).absolute(), **feature_parameters).prepare(
+            demonstration, name, description, source=source
         )
+        library = cls.open_or_create(path, X_tool0_E, **feature_parameters)
+        return library, library.add(demonstration, name, description, source=source)
+
+    @classmethod
+    def open_or_create(cls, path, X_tool0_E, **feature_parameters):
+        """:meth:`create`, or, if another process made ``path`` a library meanwhile with the
+        same end-effector frame, :meth:`open` it.
+
+        Raises
+        ------
+        InputError
+            As :meth:`create`; or the library made meanwhile has another frame.
+        """
         try:
             library = cls.create(path, X_tool0_E, **feature_parameters)
         except InputError:
@@ -523,7 +643,7 @@ class Library:
                     file=library.label,
                     field="X_tool0_E",
                 ) from None
-        return library, library.add(demonstration, name, description, source=source)
+        return library
 
     # -- reading ---------------------------------------------------------------------
     @property
@@ -544,14 +664,15 @@ class Library:
         return len(self._manifest.entries)
 
     def __contains__(self, name):
-        return any(entry.name == name for entry in self._manifest.entries)
+        return name in self._positions
 
     def entry(self, name):
         """The :class:`DemoEntry` of ``name``; InputError listing the names if absent."""
-        for entry in self._manifest.entries:
-            if entry.name == name:
-                return entry
-        known = ", ".join(self.names) or "none"
+        position = self._positions.get(name)
+        if position is not None:
+            return self._manifest.entries[position]
+        names = self.names
+        known = ", ".join(names[:20]) + (f" and {len(names) - 20} more" if len(names) > 20 else "") or "none"
         raise InputError(f"no demonstration {name!r} (it has: {known})", file=self.label, field="name")
 
     def log_path(self, name):
@@ -581,10 +702,38 @@ class Library:
         return demonstration
 
     def feature(self, name):
-        """The feature ``HD`` of ``name`` (arc-length resampled, Eq. 12): from its cache file
-        when that is fresh, else recomputed from the joint log. Writes nothing (see
-        :meth:`write_feature_caches`)."""
-        return self._feature_record(name).feature
+        """The feature ``HD`` of ``name`` (arc-length resampled, Eq. 12): from the feature
+        cache when it holds it for the log as it is, else recomputed from the joint log.
+        Writes nothing (see :meth:`write_feature_caches`)."""
+        return self._feature_records([name])[name].feature
+
+    def features(self, names=None):
+        """Name -> feature of ``names`` (default: every demonstration, in the library's
+        order), as :meth:`feature` gives them, read from the cache in one query; writes
+        nothing."""
+        names = self.names if names is None else tuple(names)
+        with collection_paused():  # thousands of features and their arrays, no cycles
+            records = self._feature_records(names)
+        return {name: records[name].feature for name in names}
+
+    def feature_summaries(self, names=None):
+        """What a listing shows of each feature, without building the features: name ->
+        ``(num_deltas, rotations, translations)``, the deltas' rotations (w, x, y, z) and
+        translations at :data:`~drake_lfd.io.feature_cache.SUMMARY_FRACTIONS`
+        (:func:`~drake_lfd.io.feature_cache.feature_summary_rows`), in ``names``' order
+        (default: every demonstration). From the cache in one query, and from
+        :meth:`feature` for a demonstration the cache does not hold for its log as it is.
+        """
+        names = self.names if names is None else tuple(names)
+        wanted = {name: self._key(self._log_identity(name).sha256) for name in names}
+        found = read_summaries(self._cache_path(), wanted)
+        result = {}
+        for name in names:
+            if name not in found:
+                feature = self.feature(name)
+                found[name] = (len(feature), *feature_summary_rows(feature))
+            result[name] = found[name]
+        return result
 
     def resampled_poses(self, name):
         """The arc-length resampled end-effector poses of ``name`` as dual quaternions,
@@ -592,59 +741,119 @@ class Library:
         mapping (Eq. 22-25) index into."""
         return self.feature(name).poses
 
-    def cache_path(self, name):
-        """Where the feature cache of ``name`` lives (it may not exist)."""
-        return self.path / CACHE_DIRECTORY / f"{name}.npz"
+    def _cache_path(self):
+        return self.path / CACHE_DIRECTORY / CACHE_NAME
 
     def write_feature_caches(self):
-        """Writes the cache file of every demonstration whose cache is missing or stale.
+        """Stores in the feature cache every feature it lacks for the logs as they are.
 
-        Reading never writes; ``add`` writes the new demonstration's cache, and the
-        command line calls this before using a library, so a user's library keeps
-        fresh caches. A read-only (bundled) library keeps no caches: nothing is written.
-        A cache that cannot be written is skipped (it is an optimisation).
+        Reading never writes; ``add`` stores the new demonstration's feature, and the
+        command line calls this before using a library, so a user's library keeps a
+        fresh cache (rows of demonstrations no longer listed, and the per-demonstration
+        ``cache/NAME.npz`` files of older drake-lfd versions, are deleted too). A
+        read-only (bundled) library keeps no cache: nothing is written. A cache that
+        cannot be written is skipped (it is an optimisation).
 
         Returns
         -------
         names : tuple of str
-            The demonstrations whose cache file was written.
+            The demonstrations whose cache row was written.
         """
         if self.read_only:
             return ()
-        missing = []
-        for name in self.names:
-            record = self._feature_record(name)  # computed outside the lock
-            if not (record.on_disk and self.cache_path(name).is_file()):
-                missing.append((name, record))
+        # A row is fresh when the log's stamp is the row's and its key the one wanted: then
+        # nothing is read. The others are computed outside the lock.
+        stale = [name for name in self.names if not self._row_is_fresh(name)]
+        records = self._feature_records(stale)
+        missing = [(name, records[name]) for name in stale if not records[name].on_disk and records[name].row]
+        listed = set(self.names)
+        unlisted = [name for name in self._rows if name not in listed]
+        legacy = [p for p in (self.path / CACHE_DIRECTORY).glob("*.npz") if p.stem in listed]
+        if not (missing or unlisted or legacy or _temporaries(self.path)):
+            return ()  # nothing to write, and no debris of a killed writer to clear
         written = []
         try:
             with _writing(self.path, self.label):
-                for name, record in missing:
-                    if write_feature_cache(self.cache_path(name), record.key, record.feature):
+                if missing and write_rows(self._cache_path(), [(record.row, record.feature) for _, record in missing]):
+                    for name, record in missing:
                         self._features[name] = record._replace(on_disk=True)
+                        self._rows[name] = record.row
                         written.append(name)
+                journal = self._cache_path().with_name(CACHE_NAME + JOURNAL_SUFFIX)
+                # (Any write rolls back the journal a killed writer left, and deletes it.)
+                if (unlisted or journal.exists()) and delete_rows(self._cache_path(), unlisted):
+                    for name in unlisted:
+                        self._rows.pop(name, None)
+                for path in legacy:
+                    with contextlib.suppress(OSError):
+                        path.unlink()
         except InputError:  # the lock cannot be taken (read-only directory): no caches
             return ()
         return tuple(written)
 
-    def _feature_record(self, name):
-        entry = self.entry(name)
-        log = self.path / entry.file
+    def _row_is_fresh(self, name):
+        """Whether the cache row read for ``name`` holds its feature for the log as it is."""
+        row = self._rows.get(name)
+        memo = self._features.get(name)
+        if row is None or (memo is not None and not memo.on_disk):  # (its row could not be used)
+            return False
         try:
+            stamp = log_stamp(os.path.join(self.path, self.entry(name).file))
+        except OSError:
+            return False
+        return row.stamp == stamp and row.feature_key == self._key(row.sha256)
+
+    def _key(self, sha256):
+        key = self._keys.get(sha256)
+        if key is None:
+            if self._context is None:
+                self._context = cache_context(self.X_tool0_E, self.num_samples, self.rotation_length_m)
+            key = self._keys[sha256] = cache_key(sha256, self._context)
+        return key
+
+    def _log_identity(self, name):
+        """The :class:`_LogIdentity` of ``name``'s log: from its cache row when the log's
+        stamp is the row's, else by reading the log."""
+        log = os.path.join(self.path, self.entry(name).file)
+        try:
+            stamp = log_stamp(log)
+            row = self._rows.get(name)
+            if row is not None and row.stamp == stamp:
+                return _LogIdentity(stamp, row.sha256, row.samples, row.duration_s, None, True)
+            log = Path(log)
             log_bytes = log.read_bytes()
+            steady = log_stamp(log) == stamp
         except OSError as error:
             raise InputError(f"cannot read the joint log: {error.strerror}", file=log) from None
-        key = cache_key(log_bytes, self.X_tool0_E, self.num_samples, self.rotation_length_m)
-        memo = self._features.get(name)
-        if memo is not None and memo.key == key:
-            return memo
-        feature = read_feature_cache(self.cache_path(name), key)
-        if feature is not None:
-            record = _FeatureRecord(key, feature, on_disk=True)
-        else:
-            record = _FeatureRecord(key, self._compute_feature(self.demonstration(name)), on_disk=False)
-        self._features[name] = record
-        return record
+        samples, duration_s = log_sample_summary(log_bytes, log)
+        return _LogIdentity(stamp, hashlib.sha256(log_bytes).hexdigest(), samples, duration_s, log_bytes, steady)
+
+    def _feature_records(self, names):
+        """Name -> :class:`_FeatureRecord` of ``names``: memoised, else from the cache (one
+        query for all), else computed from the log."""
+        records, wanted, identities = {}, {}, {}
+        for name in names:
+            identity = self._log_identity(name)
+            key = self._key(identity.sha256)
+            memo = self._features.get(name)
+            if memo is not None and memo.key == key:
+                records[name] = memo
+            else:
+                wanted[name], identities[name] = key, identity
+        stored = read_features(self._cache_path(), wanted) if wanted else {}
+        for name, key in wanted.items():
+            identity = identities[name]
+            row = None
+            if identity.steady:
+                row = CacheRow(name, identity.stamp, identity.sha256, identity.samples, identity.duration_s, key)
+            feature = stored.get(name)
+            if feature is None:
+                feature = self._compute_feature(self.demonstration(name))
+            on_disk = name in stored and self._rows.get(name) == row
+            record = _FeatureRecord(key, feature, on_disk, row)
+            self._features[name] = record
+            records[name] = record
+        return records
 
     def _dual_quaternions(self, demonstration):
         """Raw poses of E in the base frame (``X_WB`` = identity), shape (m, 8)."""
@@ -660,7 +869,19 @@ class Library:
         )
 
     # -- writing ---------------------------------------------------------------------
-    def _check_writable(self):
+    def _manifest_on_disk(self):
+        """The manifest as it is on disk now (call with the lock held): the one this object
+        read if the file holds the same bytes, else the file read again."""
+        data = read_manifest_bytes(self.path)
+        if data != self._manifest_bytes:
+            with collection_paused():
+                self._set_manifest(read_manifest(self.path, check_logs=False, data=data))
+            self._manifest_bytes = data
+        return self._manifest
+
+    def check_writable(self):
+        """Raises InputError (naming where it is installed and how to copy it) for a read-only
+        (bundled) library."""
         if self.read_only:
             raise InputError(
                 f"is a bundled library and read-only (installed in {self.path}); make an editable copy "
@@ -695,49 +916,108 @@ class Library:
             demonstration (:func:`~drake_lfd.io.demonstration_logs.check_plausible_motion`),
             or one that does not move. The library is unchanged then.
         """
-        self._check_writable()
-        if self._kinematics is None:
-            self._kinematics = UR5eKinematics(X_tool0_E=self.X_tool0_E)
-        pending = _prepare(
-            demonstration, name, description, kinematics=self._kinematics, num_samples=self.num_samples,
-            rotation_length_m=self.rotation_length_m, source=source, label=self.label,
-        )
-        entry = pending.entry
-        log = self.path / entry.file
+        pending = self.prepare(demonstration, name, description, source=source)
+        added, refused = self.add_prepared([pending])
+        if refused:
+            raise refused[0][1]
+        return added[0]
+
+    def prepare(self, demonstration, name, description="", *, source=None):
+        """Every check of a new demonstration that does not depend on what the library
+        holds, and its feature: what :meth:`add_prepared` writes. Writes nothing.
+
+        Raises
+        ------
+        InputError
+            As :meth:`add` (read-only library, bad name, invalid demonstration).
+        """
+        self.check_writable()
+        if self._preparer is None:
+            self._preparer = DemonstrationPreparer(self.X_tool0_E, self.label, self.num_samples, self.rotation_length_m)
+        return self._preparer.prepare(demonstration, name, description, source=source)
+
+    def add_prepared(self, pending):
+        """Adds prepared demonstrations (:meth:`prepare`) in one turn of the library's lock:
+        the manifest re-read there, the logs of those whose names are free, one manifest
+        write listing them all, then their cache rows.
+
+        Each demonstration is added whole or not at all: a crash leaves at worst logs the
+        manifest does not list (ignored, overwritten by a later add of that name).
+
+        Parameters
+        ----------
+        pending : sequence of prepared demonstrations
+
+        Returns
+        -------
+        added : list of DemoEntry
+            In the given order.
+        refused : list of (int, InputError)
+            The position in ``pending`` and why (the name is taken in the library, or
+            earlier in ``pending``, ignoring case).
+
+        Raises
+        ------
+        InputError
+            The library's lock cannot be taken, or its end-effector frame changed on
+            disk; nothing is added then.
+        """
+        self.check_writable()
+        added, refused, accepted = [], [], []
         with _writing(self.path, self.label):
-            manifest = read_manifest(self.path, check_logs=False)  # what is on disk now
-            if manifest.X_tool0_E_json != self._manifest.X_tool0_E_json:
+            frame = self._manifest.X_tool0_E_json
+            manifest = self._manifest_on_disk()
+            if manifest.X_tool0_E_json != frame:
                 raise InputError(
                     "the library's end-effector frame changed on disk since it was opened", file=self.label
                 )
-            for existing in manifest.entries:
-                if existing.name.lower() == name.lower():
-                    raise InputError(
-                        f"the library has a demonstration named {existing.name!r} already; "
+            taken = {existing.name.lower(): existing.name for existing in manifest.entries}
+            for position, item in enumerate(pending):
+                name = item.entry.name
+                if name.lower() in taken:
+                    refused.append((position, InputError(
+                        f"the library has a demonstration named {taken[name.lower()]!r} already; "
                         "remove it first or choose another name",
                         file=self.label,
                         field="name",
-                    )
+                    )))
+                    continue
+                taken[name.lower()] = name
+                accepted.append(item)
+            if not accepted:
+                self._set_manifest(manifest)
+                return added, refused
             _make_directory(self.path / DEMOS_DIRECTORY)
-            atomic_write_bytes(log, pending.log_bytes)
-            entries = manifest.entries + (entry,)
+            written = [self.path / item.entry.file for item in accepted]
             try:
-                write_manifest(self.path, manifest.with_entries(entries))
+                atomic_write_many([(log, item.log_bytes) for log, item in zip(written, accepted)])
+                entries = manifest.entries + tuple(item.entry for item in accepted)
+                written_bytes = write_manifest(self.path, manifest.with_entries(entries))
             except BaseException:
-                # Nothing references the new log yet: take it away again.
-                try:
-                    log.unlink()
-                except OSError:
-                    pass
+                # Nothing references the new logs yet: take them away again.
+                for log in written:
+                    with contextlib.suppress(OSError):
+                        log.unlink()
                 raise
-            self._manifest = manifest.with_entries(entries)
-            key = cache_key(pending.log_bytes, self.X_tool0_E, self.num_samples, self.rotation_length_m)
-            on_disk = write_feature_cache(self.cache_path(name), key, pending.feature)
-        self._features[name] = _FeatureRecord(key, pending.feature, on_disk)
-        return entry
+            self._set_manifest(manifest.with_entries(entries))
+            self._manifest_bytes = written_bytes
+            rows = []
+            for item in accepted:
+                name = item.entry.name
+                with contextlib.suppress(OSError):
+                    stamp = log_stamp(self.path / item.entry.file)
+                    sha256 = hashlib.sha256(item.log_bytes).hexdigest()
+                    rows.append((CacheRow(name, stamp, sha256, item.entry.samples, item.entry.duration_s,
+                                          self._key(sha256)), item.feature))
+            on_disk = write_rows(self._cache_path(), rows)
+        for row, feature in rows:
+            self._features[row.name] = _FeatureRecord(row.feature_key, feature, on_disk, row)
+            if on_disk:
+                self._rows[row.name] = row
+        return [item.entry for item in accepted], refused
 
     def remove(self, name):
-        """Removes a demonstration: the manifest entry first, then its log and cache,
+        """Removes a demonstration: the manifest entry first, then its log and cache row,
         under the library's lock. An entry whose log is missing (or damaged) can be
         removed: that is how a library is repaired.
 
@@ -746,22 +1026,24 @@ class Library:
         InputError
             Read-only library or no such demonstration.
         """
-        self._check_writable()
+        self.check_writable()
         with _writing(self.path, self.label):
-            manifest = read_manifest(self.path, check_logs=False)  # what is on disk now
-            self._manifest = manifest
+            manifest = self._manifest_on_disk()
             entry = self.entry(name)
             entries = [e for e in manifest.entries if e.name != name]
-            write_manifest(self.path, manifest.with_entries(entries))
-            self._manifest = manifest.with_entries(entries)
+            self._manifest_bytes = None  # (until the new manifest is written)
+            self._manifest_bytes = write_manifest(self.path, manifest.with_entries(entries))
+            self._set_manifest(manifest.with_entries(entries))
             self._features.pop(name, None)
-            for path in (self.path / entry.file, self.cache_path(name)):
+            for path in (self.path / entry.file, self.path / CACHE_DIRECTORY / f"{name}.npz"):
                 try:
                     path.unlink()
                 except FileNotFoundError:
                     pass
             if (self.path / DEMOS_DIRECTORY).is_dir():
                 fsync_directory(self.path / DEMOS_DIRECTORY)
+            if delete_rows(self._cache_path(), [name]):
+                self._rows.pop(name, None)
 
 
 def _remove_unused_directory(directory):
@@ -886,4 +1168,4 @@ def library_features(library: Library) -> dict[str, Feature]:
 
     What the ``plan``, ``train`` and ``simulate`` commands hand to the planners.
     """
-    return {name: library.feature(name) for name in library.names}
+    return library.features()

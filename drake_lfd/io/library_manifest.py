@@ -1,7 +1,7 @@
 """A library's manifest, ``library.json``: its layout, its entries, read and written.
 
 A library directory holds ``library.json`` (the manifest), ``demos/<name>.csv`` (one
-joint log per demonstration), ``cache/<name>.npz`` (derived feature caches) and
+joint log per demonstration), ``cache/features.sqlite`` (the derived feature cache) and
 ``library.lock`` (an empty file whose ``flock`` orders writers, ``file_lock.py``). The
 manifest lists what the library holds and with which end-effector frame::
 
@@ -28,9 +28,11 @@ joint logs (:mod:`drake_lfd.io.demonstration_logs`).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
+import os
 import re
 from pathlib import Path
 from typing import NamedTuple
@@ -53,6 +55,7 @@ __all__ = [
     "DemoEntry",
     "Manifest",
     "check_demo_name",
+    "read_manifest_bytes",
     "read_manifest",
     "manifest_text",
     "write_manifest",
@@ -67,8 +70,8 @@ TEMPORARY_PATTERN = ".*.tmp"
 DEMOS_DIRECTORY = "demos"
 CACHE_DIRECTORY = "cache"
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9_-]+$")
-#: Longest demonstration name: its files (``demos/NAME.csv``, ``cache/NAME.npz`` and their
-#: temporary ``.NAME.csv.RANDOM.tmp``) must fit the 255 bytes of a file name.
+#: Longest demonstration name: its log ``demos/NAME.csv`` and the log's temporary
+#: ``.NAME.csv.RANDOM.tmp`` must fit the 255 bytes of a file name.
 MAX_NAME_LENGTH = 100
 
 _MANIFEST_KEYS = ("schema_version", "X_tool0_E", "demos")
@@ -87,7 +90,7 @@ def check_demo_name(name):
     if len(name) > MAX_NAME_LENGTH:
         raise InputError(
             f"the demonstration name {name[:20]!r}... is too long ({len(name)} characters; at most {MAX_NAME_LENGTH}: "
-            "it names the files demos/NAME.csv and cache/NAME.npz)",
+            "it names the file demos/NAME.csv)",
             field="name",
         )
 
@@ -150,7 +153,52 @@ def _manifest_error(problem, manifest, field=None):
     return InputError(problem, file=manifest, field=field)
 
 
-def _parse_entry(value, index, directory, manifest, check_logs):
+# A relative path already in normal form (no empty, "." or ".." part): the common case,
+# checked without building a Path.
+_PLAIN_RELATIVE = re.compile(r"^(?!\.\.?(?:/|$))[^/\0]+(?:/(?!\.\.?(?:/|$))[^/\0]+)*$")
+
+
+def _folder(directory, parent, resolved):
+    """What :func:`_inside` knows of one folder of the library, memoised in ``resolved``:
+    ``None`` if the folder resolves outside ``directory``, else name -> (is a file, is a
+    symbolic link) of its entries, from one ``scandir``."""
+    if parent in resolved:
+        return resolved[parent]
+    root = resolved.get(None)
+    if root is None:
+        root = resolved[None] = directory.resolve()
+    folder = None
+    if (root / parent).resolve().is_relative_to(root):
+        folder = {}
+        with contextlib.suppress(OSError):
+            with os.scandir(os.path.join(directory, parent)) as entries:
+                for entry in entries:
+                    with contextlib.suppress(OSError):
+                        folder[entry.name] = (entry.is_file(), entry.is_symlink())
+    resolved[parent] = folder
+    return folder
+
+
+def _inside(directory, file, resolved):
+    """``(inside, is_file)``: whether ``directory / file`` (a relative path) resolves to a
+    path inside ``directory``, and whether it is a file.
+
+    ``resolved`` memoises the resolution and the listing of each folder (one per library
+    in practice, :func:`_folder`), so a manifest of thousands of entries costs one
+    ``resolve`` and one ``scandir`` per folder: only an entry that is itself a symbolic
+    link is resolved on its own."""
+    parent, _, base = file.rpartition("/")
+    folder = _folder(directory, parent, resolved)
+    if folder is None:
+        return False, False
+    is_file, is_link = folder.get(base, (False, False))
+    if is_link:
+        root = resolved[None]
+        return (root / file).resolve().is_relative_to(root), is_file
+    return True, is_file
+
+
+def _parse_entry(value, index, directory, manifest, check_logs, resolved):
     field = f"demos[{index}]"
     if not isinstance(value, dict):
         raise _manifest_error("expected an object describing one demonstration", manifest, field)
@@ -168,15 +216,19 @@ def _parse_entry(value, index, directory, manifest, check_logs):
     file = value["file"]
     if not isinstance(file, str) or not file:
         raise _manifest_error(f"expected a relative path, got {file!r}", manifest, f"{field}.file")
-    relative = Path(file)
-    root = directory.resolve()
-    if relative.is_absolute() or ".." in relative.parts or not (root / relative).resolve().is_relative_to(root):
+    if not _PLAIN_RELATIVE.match(file):
+        relative = Path(file)
+        if relative.is_absolute() or ".." in relative.parts or "\0" in file:
+            raise _manifest_error(f"{file!r} is not a path inside the library directory", manifest, f"{field}.file")
+        file = relative.as_posix()
+    inside, is_file = _inside(directory, file, resolved)
+    if not inside:
         raise _manifest_error(
-            f"{file!r} is not a path inside the library directory", manifest, f"{field}.file"
+            f"{value['file']!r} is not a path inside the library directory", manifest, f"{field}.file"
         )
-    if check_logs and not (directory / relative).is_file():
+    if check_logs and not is_file:
         raise _manifest_error(
-            f"the joint log {file} is missing; restore it, or drop the entry with "
+            f"the joint log {value['file']} is missing; restore it, or drop the entry with "
             f"'drake-lfd library remove {directory} {name}'",
             manifest,
             f"{field}.file",
@@ -194,7 +246,7 @@ def _parse_entry(value, index, directory, manifest, check_logs):
             raise _manifest_error(f"expected a string, got {value[key]!r}", manifest, f"{field}.{key}")
     return DemoEntry(
         name=name,
-        file=relative.as_posix(),
+        file=file,
         samples=samples,
         duration_s=float(duration),
         description=value["description"],
@@ -202,11 +254,29 @@ def _parse_entry(value, index, directory, manifest, check_logs):
     )
 
 
-def read_manifest(directory, *, check_logs=True) -> Manifest:
+def read_manifest_bytes(directory) -> bytes:
+    """The bytes of ``directory/library.json``.
+
+    Raises
+    ------
+    InputError
+        It is missing (the directory is not a library) or cannot be read.
+    """
+    manifest = Path(directory) / MANIFEST_NAME
+    if not manifest.is_file():
+        raise InputError(f"not a drake-lfd library: {MANIFEST_NAME} is missing", file=directory)
+    try:
+        return manifest.read_bytes()
+    except OSError as error:
+        raise _manifest_error(f"cannot read: {error}", manifest) from None
+
+
+def read_manifest(directory, *, check_logs=True, data=None) -> Manifest:
     """Reads and checks ``directory/library.json``.
 
     ``check_logs=False`` skips only the check that every entry's joint log exists (what
-    ``library remove`` needs to drop an entry whose log was deleted by hand).
+    ``library remove`` needs to drop an entry whose log was deleted by hand). ``data``:
+    the file's bytes, when the caller has read them (:func:`read_manifest_bytes`).
 
     Raises
     ------
@@ -216,10 +286,10 @@ def read_manifest(directory, *, check_logs=True) -> Manifest:
     """
     directory = Path(directory)
     manifest = directory / MANIFEST_NAME
-    if not manifest.is_file():
-        raise InputError(f"not a drake-lfd library: {MANIFEST_NAME} is missing", file=directory)
+    if data is None:
+        data = read_manifest_bytes(directory)
     try:
-        data = json.loads(manifest.read_text(encoding="utf-8"))
+        data = json.loads(data.decode("utf-8"))
     except json.JSONDecodeError as error:
         raise _manifest_error(
             f"not valid JSON ({error.msg})", manifest, f"line {error.lineno} column {error.colno}"
@@ -246,8 +316,9 @@ def read_manifest(directory, *, check_logs=True) -> Manifest:
         raise _manifest_error("expected a list", manifest, "demos")
     entries = []
     seen = {}
+    resolved = {}
     for index, value in enumerate(data["demos"]):
-        entry = _parse_entry(value, index, directory, manifest, check_logs)
+        entry = _parse_entry(value, index, directory, manifest, check_logs, resolved)
         if entry.name.lower() in seen:
             raise _manifest_error(
                 f"name {entry.name!r} repeats demos[{seen[entry.name.lower()]}]",
@@ -257,6 +328,28 @@ def read_manifest(directory, *, check_logs=True) -> Manifest:
         seen[entry.name.lower()] = index
         entries.append(entry)
     return Manifest(X_tool0_E_json=data["X_tool0_E"], entries=tuple(entries))
+
+
+# What ``json.dumps`` writes for a string (``ensure_ascii``), without its per-call overhead.
+_json_string = json.encoder.encode_basestring_ascii
+
+
+def _entry_text(entry):
+    """An entry as ``json.dumps(entry.to_json(), indent=2)`` writes it, indented by 4 more
+    spaces, built directly (the indenting encoder is pure Python: 10,000 entries took
+    0.1 s)."""
+    if not math.isfinite(entry.duration_s):
+        raise ValueError(f"duration_s of {entry.name!r} is not finite: {entry.duration_s!r}")
+    return (
+        "    {\n"
+        f'      "name": {_json_string(entry.name)},\n'
+        f'      "file": {_json_string(entry.file)},\n'
+        f'      "samples": {int(entry.samples)},\n'
+        f'      "duration_s": {float(entry.duration_s)!r},\n'
+        f'      "description": {_json_string(entry.description)},\n'
+        f'      "added": {_json_string(entry.added)}\n'
+        "    }"
+    )
 
 
 def manifest_text(manifest: Manifest) -> str:
@@ -270,10 +363,7 @@ def manifest_text(manifest: Manifest) -> str:
     """
     # json.dumps(indent=2) would put every number of the pose on its own line;
     # this layout keeps the pose on one line and each entry as an indented block.
-    demos = ",\n".join(
-        "    " + json.dumps(entry.to_json(), indent=2, allow_nan=False).replace("\n", "\n    ")
-        for entry in manifest.entries
-    )
+    demos = ",\n".join(_entry_text(entry) for entry in manifest.entries)
     return (
         "{\n"
         f'  "schema_version": {SCHEMA_VERSION},\n'
@@ -284,5 +374,8 @@ def manifest_text(manifest: Manifest) -> str:
 
 
 def write_manifest(directory, manifest: Manifest):
-    """Replaces ``directory/library.json`` atomically (old or new, never half of one)."""
-    atomic_write_bytes(Path(directory) / MANIFEST_NAME, manifest_text(manifest).encode("utf-8"))
+    """Replaces ``directory/library.json`` atomically (old or new, never half of one);
+    returns the bytes written."""
+    data = manifest_text(manifest).encode("utf-8")
+    atomic_write_bytes(Path(directory) / MANIFEST_NAME, data)
+    return data
