@@ -290,6 +290,11 @@ class CompositionProblem:
             sweep.finish(self._first_start(k))
 
     # -- queries -------------------------------------------------------------------------
+    def row(self, j: int) -> list[tuple[int, int, np.ndarray]]:
+        """Row j of the table: ``(k, d, cost[(j, k, d)])`` in the order of span end k, then
+        demo d (only the legal ones). Builds only that row."""
+        return [(k, d, self._cost[(j, k, d)]) for k, d in self._row(j) if (j, k, d) in self._cost]
+
     def actions_from(self, j: int, a_j: int) -> list[Step]:
         """Legal actions from state (j, a_j), in a deterministic order (span end k, then
         demo d, then con_k's candidate). Builds only row j of the table."""

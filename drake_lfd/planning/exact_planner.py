@@ -25,15 +25,22 @@ TIE_BREAK_PER_STEP = 1e-6
 
 
 def cost_to_go(problem: CompositionProblem) -> list[np.ndarray]:
-    """``value[j][a_j]``: least total cost from state (j, a_j) to the last con (inf if none)."""
+    """``value[j][a_j]``: least total cost from state (j, a_j) to the last con (inf if none).
+
+    The demonstrations of one span are reduced first (an elementwise minimum of their
+    cost matrices): rounding is monotone, so ``min_d (c_d + t + v)`` equals
+    ``(min_d c_d) + t + v`` exactly and the values are those of a scan over every action."""
     n = problem.num_cons
     value = [np.full(g, np.inf) for g in problem.num_candidates]
     value[n - 1][:] = 0.0
+    by_span: dict[tuple[int, int], list[np.ndarray]] = {}
+    for (j, k, _d), matrix in problem.cost.items():
+        by_span.setdefault((j, k), []).append(matrix)
     by_start: dict[int, list] = {}
-    for (j, k, d), matrix in problem.cost.items():
-        by_start.setdefault(j, []).append((k, d, matrix))
+    for (j, k), matrices in by_span.items():
+        by_start.setdefault(j, []).append((k, np.minimum.reduce(matrices) if len(matrices) > 1 else matrices[0]))
     for j in range(n - 2, -1, -1):
-        for k, _d, matrix in by_start.get(j, []):
+        for k, matrix in by_start.get(j, []):
             through = (matrix + TIE_BREAK_PER_STEP + value[k][None, :]).min(axis=1)
             value[j] = np.minimum(value[j], through)
     return value
@@ -48,11 +55,17 @@ def plan_exact(problem: CompositionProblem) -> list[Step] | None:
     steps = []
     j = 0
     while j < problem.num_cons - 1:
+        # The first action, in the order of ``actions_from``, that no later one beats by
+        # more than 1e-12 (scanned without making a Step of every action).
         best = None
-        for step in problem.actions_from(j, a):
-            total = step.cost + TIE_BREAK_PER_STEP + value[step.k][step.a_k]
-            if best is None or total < best[0] - 1e-12:
-                best = (total, step)
-        steps.append(best[1])
-        j, a = best[1].k, best[1].a_k
+        for k, d, matrix in problem.row(j):
+            row = matrix[a]
+            ends = np.flatnonzero(np.isfinite(row))
+            totals = row[ends] + TIE_BREAK_PER_STEP + value[k][ends]
+            for a_k, total in zip(ends.tolist(), totals.tolist()):
+                if best is None or total < best[0] - 1e-12:
+                    best = (total, k, d, a_k)
+        _, k, d, a_k = best
+        steps.append(Step(d, j, k, a, a_k, float(problem.cost[(j, k, d)][a, a_k])))
+        j, a = k, a_k
     return steps
