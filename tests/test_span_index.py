@@ -162,3 +162,25 @@ def test_the_index_bound_holds_for_every_delta_it_discards():
         demo_short = np.linalg.norm(feature.translations, axis=-1) < tolerances.min_translation_m
         passes = (alpha <= tolerances.d_alpha + ALPHA_MARGIN) & (short[:, None] == demo_short[None])
         assert not (passes.any(axis=1) & ~mask[:, d]).any(), d
+
+
+def test_the_walk_picks_what_a_scan_over_every_action_picks():
+    """plan_exact's record scan against the scan over ``actions_from`` it replaced."""
+    from drake_lfd.planning.exact_planner import TIE_BREAK_PER_STEP
+
+    for seed in range(0, 240, 6):
+        problem = random_problem(seed, True)
+        value = cost_to_go(problem)
+        steps = plan_exact(problem)
+        if steps is None:
+            assert not np.isfinite(value[0]).any()
+            continue
+        a = int(np.argmin(value[0]))
+        for step in steps:
+            best = None
+            for candidate in problem.actions_from(step.j, a):
+                total = candidate.cost + TIE_BREAK_PER_STEP + value[candidate.k][candidate.a_k]
+                if best is None or total < best[0] - 1e-12:
+                    best = (total, candidate)
+            assert best[1] == step, seed
+            a = step.a_k

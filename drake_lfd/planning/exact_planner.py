@@ -55,17 +55,29 @@ def plan_exact(problem: CompositionProblem) -> list[Step] | None:
     steps = []
     j = 0
     while j < problem.num_cons - 1:
-        # The first action, in the order of ``actions_from``, that no later one beats by
-        # more than 1e-12 (scanned without making a Step of every action).
-        best = None
-        for k, d, matrix in problem.row(j):
-            row = matrix[a]
-            ends = np.flatnonzero(np.isfinite(row))
-            totals = row[ends] + TIE_BREAK_PER_STEP + value[k][ends]
-            for a_k, total in zip(ends.tolist(), totals.tolist()):
-                if best is None or total < best[0] - 1e-12:
-                    best = (total, k, d, a_k)
-        _, k, d, a_k = best
+        k, d, a_k = _best_action(problem.row(j), a, value)
         steps.append(Step(d, j, k, a, a_k, float(problem.cost[(j, k, d)][a, a_k])))
         j, a = k, a_k
     return steps
+
+
+def _best_action(row: list[tuple[int, int, np.ndarray]], a: int, value: list[np.ndarray]) -> tuple[int, int, int]:
+    """``(k, d, a_k)`` of the action from (j, a) that a scan in the order of
+    ``actions_from`` keeps: the first, replaced by a later one only when that one is
+    lower by more than 1e-12. Only an action below every earlier one can replace the
+    kept one (the kept one is within 1e-12 of the earlier minimum), so the scan runs
+    over those records alone."""
+    costs = [matrix[a] for _, _, matrix in row]
+    counts = [len(c) for c in costs]
+    ends = np.concatenate([np.arange(c) for c in counts])
+    which = np.repeat(np.arange(len(row)), counts)
+    to_go = np.concatenate([value[k] for k, _, _ in row])
+    totals = np.concatenate(costs) + TIE_BREAK_PER_STEP + to_go
+    order = np.flatnonzero(np.isfinite(totals))
+    earlier = np.minimum.accumulate(np.concatenate([[np.inf], totals[order][:-1]]))
+    best = None
+    for index in order[totals[order] < earlier].tolist():
+        if best is None or totals[index] < totals[best] - 1e-12:
+            best = index
+    k, d, _ = row[int(which[best])]
+    return k, d, int(ends[best])
