@@ -45,6 +45,7 @@ from drake_lfd.core.dual_quaternion import (
     dual_quaternion_multiply,
     quaternion_from_axis_angle,
 )
+from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
 from drake_lfd.core.synthetic_library import PAPER6, random_features, synthetic_demo_poses
 from drake_lfd.planning.exact_planner import plan_exact
@@ -94,8 +95,8 @@ def _task(library, n, seed):
                         perturbation_m=0.02, name=f"chained_{n}")[0]
 
 
-def scale_section(sizes, lengths):
-    print("## planning (exact planner, fidelity cost)")
+def scale_section(sizes, lengths, cost):
+    print(f"## planning (exact planner, {cost} cost)")
     print("| h | n | first plan s | next plan s | peak MB | discarded by index | not reached | tested | planned |")
     print("|---|---|---|---|---|---|---|---|---|")
     for h in sizes:
@@ -103,10 +104,14 @@ def scale_section(sizes, lengths):
         library = random_features(np.random.default_rng(h), h)
         made = time.perf_counter() - start
         for n in lengths:
-            first, _, _, _ = plan_once(_task(library, n, 2 * n), library)
+            try:
+                first, _, _, _ = plan_once(_task(library, n, 2 * n), library, cost)
+            except InputError as error:  # check_problem_size's refusal, before anything is allocated
+                print(f"| {h:,} | {n} | refused: {str(error).split(': the task ')[-1].split(':')[0]} |", flush=True)
+                continue
             task = _task(library, n, 2 * n + 1)
-            seconds, _, problem, steps = plan_once(task, library)
-            _, peak, _, _ = plan_once(task, library, memory=True)
+            seconds, _, problem, steps = plan_once(task, library, cost)
+            _, peak, _, _ = plan_once(task, library, cost, memory=True)
             s = problem.stats
             print(f"| {h:,} | {n} | {first:.2f} | {seconds:.2f} | {peak / 2**20:.0f} | "
                   f"{s.discarded_by_index / s.pairs:.2f} | {s.dropped_earlier / s.pairs:.2f} | "
@@ -190,13 +195,15 @@ def main(argv=None):
     parser.add_argument("--section", choices=("all", "scale", "issue", "q"), default="all")
     parser.add_argument("--sizes", type=int, nargs="+", default=SIZES, help="library sizes of the scale section")
     parser.add_argument("--lengths", type=int, nargs="+", default=TASK_LENGTHS, help="task lengths (configurations)")
+    parser.add_argument("--cost", choices=("fidelity", "paper"), default="fidelity",
+                        help="cost mode of the scale section")
     parser.add_argument("--q-one", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.q_one is not None:
         print(json.dumps(q_one(args.q_one)))
         return
     if args.section in ("all", "scale"):
-        scale_section(args.sizes, args.lengths)
+        scale_section(args.sizes, args.lengths, args.cost)
     if args.section in ("all", "issue"):
         issue_section()
     if args.section in ("all", "q"):
