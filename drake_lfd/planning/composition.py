@@ -122,6 +122,14 @@ class _EndSweep:
         self.low, self.demos, self.suffix = first_start, self.demos[:0], None
 
 
+def _keys_by_start(table: dict, num_cons: int) -> list[list[tuple[int, int]]]:
+    """``keys[j]``: the (k, d) of the table's entries starting at j, sorted."""
+    keys: list[list[tuple[int, int]]] = [[] for _ in range(num_cons)]
+    for j, k, d in table:
+        keys[j].append((k, d))
+    return [sorted(row) for row in keys]
+
+
 class CompositionProblem:
     """All legal actions of one concrete task against one library.
 
@@ -168,6 +176,7 @@ class CompositionProblem:
         self._complete = False
         self._row_keys: list[list[tuple[int, int]] | None] = [None] * self.num_cons
         self._row_keys[-1] = []
+        self._built: list[list[tuple[int, int]]] = [[] for _ in range(self.num_cons)]  # (k, d) found per start
         self._sweeps = {k: _EndSweep(k, np.arange(self.num_demos)) for k in range(1, self.num_cons)}
 
     # -- building the legal-action table -------------------------------------------------
@@ -180,8 +189,7 @@ class CompositionProblem:
             for k in range(1, self.num_cons):
                 self._extend(k, self._first_start(k))
             self._cost = dict(sorted(self._cost.items(), key=lambda item: (item[0][1], item[0][0], item[0][2])))
-            for j in range(self.num_cons - 1):
-                self._row_keys[j] = self._sorted_row(j)
+            self._row_keys = _keys_by_start(self._cost, self.num_cons)
             self._complete = True
         return self._cost
 
@@ -190,13 +198,10 @@ class CompositionProblem:
         """Replaces the whole table (for example a copy to forbid actions in)."""
         self._cost = table
         self._complete = True
-        self._row_keys = [sorted((k, d) for (jj, k, d) in table if jj == j) for j in range(self.num_cons)]
+        self._row_keys = _keys_by_start(table, self.num_cons)
 
     def _first_start(self, k: int) -> int:
         return max(0, k - self.max_span)
-
-    def _sorted_row(self, j: int) -> list[tuple[int, int]]:
-        return sorted((k, d) for (jj, k, d) in self._cost if jj == j)
 
     def _row(self, j: int) -> list[tuple[int, int]]:
         """The (span end, demo) keys of row j, in order, building the row if needed: each
@@ -205,7 +210,7 @@ class CompositionProblem:
         if keys is None:
             for k in range(j + 1, min(self.num_cons - 1, j + self.max_span) + 1):
                 self._extend(k, j)
-            keys = self._row_keys[j] = self._sorted_row(j)
+            keys = self._row_keys[j] = sorted(self._built[j])
         return keys
 
     def _pair_costs(self, rotations, translations, demo_rotations, demo_translations, demo_excursions,
@@ -274,7 +279,9 @@ class CompositionProblem:
             head += suffix[None]
         total = head.min(axis=-1)  # (g_l, g_k, s)
         for s in np.flatnonzero(np.isfinite(total).any(axis=(0, 1))).tolist():
-            self._cost[(l, k, int(demos[s]))] = np.ascontiguousarray(total[:, :, s])
+            d = int(demos[s])
+            self._cost[(l, k, d)] = np.ascontiguousarray(total[:, :, s])
+            self._built[l].append((k, d))
         if l == self._first_start(k):
             sweep.finish(l)
             return

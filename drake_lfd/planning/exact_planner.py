@@ -68,9 +68,10 @@ def _best_action(row: list[tuple[int, int, np.ndarray]], a: int, value: list[np.
     kept one (the kept one is within 1e-12 of the earlier minimum), so the scan runs
     over those records alone."""
     costs = [matrix[a] for _, _, matrix in row]
-    counts = [len(c) for c in costs]
-    ends = np.concatenate([np.arange(c) for c in counts])
+    counts = np.array([len(c) for c in costs])
+    starts = np.cumsum(counts) - counts
     which = np.repeat(np.arange(len(row)), counts)
+    ends = np.arange(int(counts.sum())) - starts[which]
     to_go = np.concatenate([value[k] for k, _, _ in row])
     totals = np.concatenate(costs) + TIE_BREAK_PER_STEP + to_go
     order = np.flatnonzero(np.isfinite(totals))
