@@ -11,19 +11,26 @@ or, in the ``"fidelity"`` cost mode, minus the least total of alpha plus the sha
 terms of ``core/fidelity.py`` (docs/method.rst, "Shape fidelity"). See docs/method.rst,
 "Planning".
 
-:class:`CompositionProblem` computes every legal action of a task at once, as dense
-cost matrices ``cost[(j, k, d)]`` of shape ``(g_j, g_k)`` (``inf`` = illegal), so an
-episode or a planner never recomputes a similarity test. It runs the similarity kernel
-of ``core/similarity.py`` batched, never a copy of it:
+:class:`CompositionProblem` computes the legal actions of a task as dense cost matrices
+``cost[(j, k, d)]`` of shape ``(g_j, g_k)`` (``inf`` = illegal), each once, so an
+episode or a planner never recomputes a similarity test; a row (every action from
+con_j) is built when it is first asked for (:meth:`CompositionProblem.actions_from`,
+:meth:`CompositionProblem.row`), the whole table when :attr:`CompositionProblem.cost`
+is read. It runs the similarity kernel of ``core/similarity.py`` batched, never a copy
+of it (docs/method.rst, "Cost of planning"):
 
-* every task delta ``D_l* (x) D_k`` (Eq. 18) depends only on ``(l, a_l, k, a_k)``, so
-  for each end k all of them are formed in one broadcast and go through
-  ``fidelity.action_pair_costs`` (``similarity``'s test plus the cost mode's fidelity
-  terms) against every demo delta of the library in one call;
+* every task delta ``D_l* (x) D_k`` (Eq. 18) depends only on ``(l, a_l, k, a_k)``; for
+  each end k the rows l = k-1, k-2, ... are swept backwards, each row's deltas going
+  through ``fidelity.action_pair_costs`` (``similarity``'s test plus the cost mode's
+  fidelity terms) against every demo delta of the demonstrations still in the sweep, in
+  one call over the library's padded stacks (``span_index.PreparedLibrary``);
 * in a span, an intermediate con l's candidate affects only row l of the allocation,
-  so the best choice is a per-demo-delta minimum over a_l, and
-  ``similarity.allocation_step`` runs the order-preserving allocation for all
-  ``(a_j, a_k)`` pairs together.
+  so the best choice is a per-demo-delta minimum over a_l; the order-preserving
+  allocation (Definition 1) runs backwards as suffix minima, so one sweep per end
+  serves the spans from every start;
+* before a row runs, ``span_index.SpanIndex`` discards the demonstrations that provably
+  cannot pass it, and a demonstration with no allocation of a row's deltas leaves the
+  sweep: neither changes a verdict or a cost.
 
 :meth:`CompositionProblem.span_allocation` recovers, for one chosen action, the
 intermediate candidates and the allocation that the mapping needs (same kernel, same
