@@ -49,7 +49,6 @@ from typing import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from drake_lfd.core.features import Feature
 from drake_lfd.core.fidelity import feature_excursions
@@ -104,6 +103,10 @@ class SpanIndex:
         self._has_short = (blocks_short & real).any(axis=-1)[exists]
         self._has_long = (~blocks_short & real).any(axis=-1)[exists]
         centres = centre[exists]
+        # Imported when first needed: imported at start-up, before pydrake started Meshcat,
+        # scipy.spatial made a notebook kernel abort (tutorials/04_record_your_own).
+        from scipy.spatial import cKDTree
+
         self._split_short = tolerances.d_beta > -1.0
         self._tree = cKDTree(np.concatenate([centres, -centres])) if len(centres) else None
         self._max_radius = float(self._radii.max()) if len(self._radii) else 0.0
@@ -128,7 +131,7 @@ class SpanIndex:
         if self._tree is None or m == 0:
             return mask
         reach = self.tolerances.d_alpha + self._max_radius + ALPHA_MARGIN
-        hits = cKDTree(task_rotations).sparse_distance_matrix(self._tree, reach, output_type="ndarray")
+        hits = type(self._tree)(task_rotations).sparse_distance_matrix(self._tree, reach, output_type="ndarray")
         rows, points, distance = hits["i"], hits["j"], hits["v"]
         blocks = points % len(self._radii)
         keep = distance <= self.tolerances.d_alpha + self._radii[blocks] + ALPHA_MARGIN
