@@ -126,3 +126,26 @@ def test_episodes_to_steady():
     step = np.concatenate([np.full(18, -10.0), np.full(82, -9.67)])
     assert mut.episodes_to_steady(step) == 18
     assert mut.episodes_to_steady(np.full(100, -2.0)) == 0
+
+
+def test_plan_with_the_q_planner_refuses_a_library_beyond_its_limit(monkeypatch):
+    """One line naming the exact planner (InputError: exit 2), before the policy is read."""
+    import argparse
+
+    from drake_lfd.cli import plan as plan_cli
+    from drake_lfd.core.errors import InputError
+    from drake_lfd.io.library import Library
+    from drake_lfd.planning import q_learning
+
+    library = Library.open("paper5")
+    args = argparse.Namespace(planner="q", policy="no_such_policy.json", command="plan")
+    monkeypatch.setattr(q_learning, "Q_PLANNER_MAX_DEMOS", 4)
+    with pytest.raises(InputError) as error:
+        plan_cli.load_policy_for(args, library)
+    assert error.value.field == "--planner"
+    assert "--planner exact" in str(error.value) and "at most 4 demonstrations" in str(error.value)
+    assert "\n" not in str(error.value)
+    monkeypatch.setattr(q_learning, "Q_PLANNER_MAX_DEMOS", 5)  # at the limit: on to the policy
+    with pytest.raises(Exception) as error:
+        plan_cli.load_policy_for(args, library)
+    assert "no_such_policy.json" in str(error.value)

@@ -73,9 +73,14 @@ def load_policy_for(args, library=None):
     on stderr."""
     from drake_lfd.io.library import library_features
     from drake_lfd.io.policy_files import check_policy_library, load_policy
+    from drake_lfd.planning.q_learning import Q_PLANNER_MAX_DEMOS
 
     if args.planner != "q":
         return None
+    if library is not None and len(library_features(library)) > Q_PLANNER_MAX_DEMOS:
+        raise InputError(f"--planner q serves libraries of at most {Q_PLANNER_MAX_DEMOS:,} demonstrations and "
+                         f"{library.label} has {len(library_features(library)):,}; use --planner exact",
+                         field="--planner")
     if not args.policy:
         raise InputError("--planner q needs --policy POLICY (train one with drake-lfd train)", field="--policy")
     policy = load_policy(args.policy)

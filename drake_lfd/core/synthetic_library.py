@@ -14,6 +14,9 @@ conventions of ``docs/method.rst``, *Conventions*) while translating:
 * ``stacking``: up, over and down with a constant orientation;
 * ``span``: +90 deg about body x (the sixth demonstration the assembling task asks for).
 
+:func:`random_demo_poses` / :func:`random_features` make demonstrations with random
+motions, for generated libraries of any size (``benchmarks/bench_library_scale.py``).
+
 Not for: recorded demonstrations (``demonstrations.py``, ``kinesthetic.py``).
 """
 
@@ -40,6 +43,8 @@ __all__ = [
     "stacking_demo",
     "synthetic_demo_poses",
     "synthetic_features",
+    "random_demo_poses",
+    "random_features",
 ]
 
 _X_AXIS, _Y_AXIS, _Z_AXIS = np.eye(3)
@@ -154,3 +159,44 @@ def synthetic_features(names: Sequence[str] = PAPER5) -> dict[str, Feature]:
         Built with :meth:`Feature.from_poses` and its defaults.
     """
     return {name: Feature.from_poses(synthetic_demo_poses(name)) for name in names}
+
+
+def random_demo_poses(rng: np.random.Generator, num: int = 120) -> NDArray[np.float64]:
+    """Raw poses of a random demonstration with its own motion, for generated libraries.
+
+    It turns by an angle drawn uniformly in [-pi, pi] about a random body axis while it
+    moves 5-30 cm in a random body direction, bulging off the straight line by up to
+    half that length (a lift-over-lower when large), from a random start pose.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    num : int
+        Number of poses.
+
+    Returns
+    -------
+    D : array, shape (num, 8)
+    """
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    direction = rng.normal(size=3)
+    direction *= rng.uniform(0.05, 0.3) / np.linalg.norm(direction)
+    bulge = rng.normal(size=3)
+    bulge *= rng.uniform(0.0, 0.5) * np.linalg.norm(direction) / np.linalg.norm(bulge)
+    s = np.linspace(0.0, 1.0, num)[:, None]
+    translations = s * direction + np.sin(np.pi * s) * bulge
+    rotations = quaternion_from_axis_angle(axis, rng.uniform(-np.pi, np.pi) * s[:, 0])
+    start_axis = rng.normal(size=3)
+    start = dual_quaternion_from_translation_rotation(
+        rng.uniform(-0.2, 0.2, 3) + [0.4, 0.0, 0.3],
+        quaternion_from_axis_angle(start_axis / np.linalg.norm(start_axis), rng.uniform(0.0, np.pi)))
+    return dual_quaternion_multiply(start, dual_quaternion_from_translation_rotation(translations, rotations))
+
+
+def random_features(rng: np.random.Generator, count: int, num_samples: int | None = None) -> dict[str, Feature]:
+    """Features of ``count`` :func:`random_demo_poses` demonstrations, named
+    ``random_0`` .. (with ``num_samples``, resampled to that many samples instead of
+    :meth:`Feature.from_poses`' default)."""
+    extra = {} if num_samples is None else {"num_samples": num_samples}
+    return {f"random_{i}": Feature.from_poses(random_demo_poses(rng), **extra) for i in range(count)}

@@ -11,19 +11,26 @@ or, in the ``"fidelity"`` cost mode, minus the least total of alpha plus the sha
 terms of ``core/fidelity.py`` (docs/method.rst, "Shape fidelity"). See docs/method.rst,
 "Planning".
 
-:class:`CompositionProblem` computes every legal action of a task at once, as dense
-cost matrices ``cost[(j, k, d)]`` of shape ``(g_j, g_k)`` (``inf`` = illegal), so an
-episode or a planner never recomputes a similarity test. It runs the similarity kernel
-of ``core/similarity.py`` batched, never a copy of it:
+:class:`CompositionProblem` computes the legal actions of a task as dense cost matrices
+``cost[(j, k, d)]`` of shape ``(g_j, g_k)`` (``inf`` = illegal), each once, so an
+episode or a planner never recomputes a similarity test; a row (every action from
+con_j) is built when it is first asked for (:meth:`CompositionProblem.actions_from`,
+:meth:`CompositionProblem.row`), the whole table when :attr:`CompositionProblem.cost`
+is read. It runs the similarity kernel of ``core/similarity.py`` batched, never a copy
+of it (docs/method.rst, "Cost of planning"):
 
-* every task delta ``D_l* (x) D_k`` (Eq. 18) depends only on ``(l, a_l, k, a_k)``, so
-  for each end k all of them are formed in one broadcast and go through
-  ``fidelity.action_pair_costs`` (``similarity``'s test plus the cost mode's fidelity
-  terms) against every demo delta of the library in one call;
+* every task delta ``D_l* (x) D_k`` (Eq. 18) depends only on ``(l, a_l, k, a_k)``; for
+  each end k the rows l = k-1, k-2, ... are swept backwards, each row's deltas going
+  through ``fidelity.action_pair_costs`` (``similarity``'s test plus the cost mode's
+  fidelity terms) against every demo delta of the demonstrations still in the sweep, in
+  one call over the library's padded stacks (``span_index.PreparedLibrary``);
 * in a span, an intermediate con l's candidate affects only row l of the allocation,
-  so the best choice is a per-demo-delta minimum over a_l, and
-  ``similarity.allocation_step`` runs the order-preserving allocation for all
-  ``(a_j, a_k)`` pairs together.
+  so the best choice is a per-demo-delta minimum over a_l; the order-preserving
+  allocation (Definition 1) runs backwards as suffix minima, so one sweep per end
+  serves the spans from every start;
+* before a row runs, ``span_index.SpanIndex`` discards the demonstrations that provably
+  cannot pass it, and a demonstration with no allocation of a row's deltas leaves the
+  sweep: neither changes a verdict or a cost.
 
 :meth:`CompositionProblem.span_allocation` recovers, for one chosen action, the
 intermediate candidates and the allocation that the mapping needs (same kernel, same
@@ -42,7 +49,7 @@ import numpy as np
 
 from drake_lfd.core.dual_quaternion import dual_quaternion_relative, translation_from_dual_quaternion
 from drake_lfd.core.features import Feature
-from drake_lfd.core.fidelity import FidelityWeights, action_pair_costs, check_cost_mode, feature_excursions
+from drake_lfd.core.fidelity import FidelityWeights, action_pair_costs, check_cost_mode
 from drake_lfd.core.similarity import (
     Allocation,
     Tolerances,
@@ -51,8 +58,9 @@ from drake_lfd.core.similarity import (
     allocation_table,
     rotation_distance,
 )
+from drake_lfd.planning.span_index import prepared_library
 
-__all__ = ["SUFFIX_SEPARATION", "Step", "SpanAllocation", "CompositionProblem"]
+__all__ = ["SUFFIX_SEPARATION", "Step", "SpanAllocation", "TableStats", "CompositionProblem"]
 
 # Alternative suffixes of one span (:meth:`CompositionProblem.suffix_candidates`) start at
 # least this many resampled samples apart (a tenth of a 100-sample demonstration).
@@ -85,6 +93,50 @@ class SpanAllocation:
     allocation: Allocation
 
 
+@dataclasses.dataclass
+class TableStats:
+    """What building the table cost, in (demonstration, span) pairs.
+
+    Attributes
+    ----------
+    pairs : int
+        Pairs of the spans built so far (demonstrations times spans).
+    dropped_earlier : int
+        Pairs never considered: a shorter span of the same end already had no allocation
+        for the demonstration, or the index discarded it there.
+    discarded_by_index : int
+        Pairs the index (or the length bound ``p <= n_d``) discarded.
+    tested : int
+        Pairs that went through the exact similarity test.
+    """
+
+    pairs: int = 0
+    dropped_earlier: int = 0
+    discarded_by_index: int = 0
+    tested: int = 0
+
+
+class _EndSweep:
+    """The state of span end k's backward sweep: built down to start ``low``; ``demos``
+    (s,) those still in the sweep, ``suffix`` (g_k, s, n_max) the least cost of
+    allocating deltas ``low..k-1`` after each demo index (None before the first row)."""
+
+    def __init__(self, k: int, demos: np.ndarray):
+        self.k, self.low, self.demos, self.suffix = k, k, demos, None
+
+    def finish(self, first_start: int) -> None:
+        """Nothing more to build: no demonstration is left, or the span limit is reached."""
+        self.low, self.demos, self.suffix = first_start, self.demos[:0], None
+
+
+def _keys_by_start(table: dict, num_cons: int) -> list[list[tuple[int, int]]]:
+    """``keys[j]``: the (k, d) of the table's entries starting at j, sorted."""
+    keys: list[list[tuple[int, int]]] = [[] for _ in range(num_cons)]
+    for j, k, d in table:
+        keys[j].append((k, d))
+    return [sorted(row) for row in keys]
+
+
 class CompositionProblem:
     """All legal actions of one concrete task against one library.
 
@@ -111,6 +163,7 @@ class CompositionProblem:
         max_span: int | None = None,
         cost: str = "paper",
         fidelity_weights: FidelityWeights = FidelityWeights(),
+        use_index: bool = True,
     ):
         self.cost_mode = check_cost_mode(cost)
         self.fidelity_weights = fidelity_weights
@@ -123,19 +176,49 @@ class CompositionProblem:
         self.num_demos = len(self.demo_features)
         self.tolerances = tolerances
         self.max_span = self.num_cons - 1 if max_span is None else int(max_span)
-        self._offsets = np.cumsum([0] + [len(f) for f in self.demo_features])
-        self._stacked_demo = self._stack_demos()
-        self._excursions = [feature_excursions(f, tolerances.min_translation_m) for f in self.demo_features]
-        self._stacked_excursions = np.concatenate(self._excursions) if self.num_demos else np.zeros(0)
-        self.cost = self._legal_action_costs()
+        self.use_index = bool(use_index)
+        self.library = prepared_library(self.demo_features, tolerances)
+        self.stats = TableStats()
+        self._cost: dict[tuple[int, int, int], np.ndarray] = {}
+        self._complete = False
+        self._row_keys: list[list[tuple[int, int]] | None] = [None] * self.num_cons
+        self._row_keys[-1] = []
+        self._built: list[list[tuple[int, int]]] = [[] for _ in range(self.num_cons)]  # (k, d) found per start
+        self._sweeps = {k: _EndSweep(k, np.arange(self.num_demos)) for k in range(1, self.num_cons)}
 
     # -- building the legal-action table -------------------------------------------------
-    def _stack_demos(self) -> tuple[np.ndarray, np.ndarray]:
-        """All demo deltas stacked: rotations (N, 4), translations (N, 3)."""
-        if self.num_demos == 0:
-            return np.zeros((0, 4)), np.zeros((0, 3))
-        return (np.concatenate([f.rotations for f in self.demo_features]),
-                np.concatenate([f.translations for f in self.demo_features]))
+    @property
+    def cost(self) -> dict[tuple[int, int, int], np.ndarray]:
+        """Every legal action: ``cost[(j, k, d)]`` (g_j, g_k), inf where illegal, in the
+        order of span end k, then start j, then demo d. Reading it builds the rows not
+        built yet (:meth:`actions_from` builds only the row it needs)."""
+        if not self._complete:
+            for k in range(1, self.num_cons):
+                self._extend(k, self._first_start(k))
+            self._cost = dict(sorted(self._cost.items(), key=lambda item: (item[0][1], item[0][0], item[0][2])))
+            self._row_keys = _keys_by_start(self._cost, self.num_cons)
+            self._complete = True
+        return self._cost
+
+    @cost.setter
+    def cost(self, table: dict[tuple[int, int, int], np.ndarray]) -> None:
+        """Replaces the whole table (for example a copy to forbid actions in)."""
+        self._cost = table
+        self._complete = True
+        self._row_keys = _keys_by_start(table, self.num_cons)
+
+    def _first_start(self, k: int) -> int:
+        return max(0, k - self.max_span)
+
+    def _row(self, j: int) -> list[tuple[int, int]]:
+        """The (span end, demo) keys of row j, in order, building the row if needed: each
+        span end k within ``max_span`` is swept down to j."""
+        keys = self._row_keys[j]
+        if keys is None:
+            for k in range(j + 1, min(self.num_cons - 1, j + self.max_span) + 1):
+                self._extend(k, j)
+            keys = self._row_keys[j] = sorted(self._built[j])
+        return keys
 
     def _pair_costs(self, rotations, translations, demo_rotations, demo_translations, demo_excursions,
                     tie_break):
@@ -145,52 +228,94 @@ class CompositionProblem:
         return action_pair_costs(rotations, translations, demo_rotations, demo_translations, demo_excursions,
                                  self.tolerances, self.cost_mode, self.fidelity_weights, tie_break)
 
-    def _delta_cost_rows(self, k: int) -> tuple[list[np.ndarray | None], list[np.ndarray | None]]:
-        """For end k: ``rows[l]`` (g_l, g_k, N), the pair cost (``fidelity.action_pair_costs``)
-        of delta(l, a_l; k, a_k) with every stacked demo delta, and ``firsts[l]`` what a
-        pair adds as an allocation's first; None for l outside ``max_span``. Every delta
-        ending at k goes through the kernel in one call."""
-        D_k = self.candidate_poses[k]
-        g_k = len(D_k)
-        first = max(0, k - self.max_span)
-        sources = [self.candidate_poses[l] for l in range(first, k)]
-        delta = dual_quaternion_relative(np.concatenate(sources)[:, None, :], D_k[None, :, :]).reshape(-1, 8)
-        cost, first_cost = self._pair_costs(delta[:, :4], translation_from_dual_quaternion(delta),
-                                            *self._stacked_demo, self._stacked_excursions, tie_break=False)
-        rows: list[np.ndarray | None] = [None] * first
-        firsts: list[np.ndarray | None] = [None] * first
-        offset = 0
-        for source in sources:
-            count = len(source) * g_k
-            rows.append(cost[offset : offset + count].reshape(len(source), g_k, -1))
-            firsts.append(first_cost[offset : offset + count].reshape(len(source), g_k, -1))
-            offset += count
-        return rows, firsts
+    def _extend(self, k: int, j: int) -> None:
+        """Sweeps span end k down to start j (see :meth:`_sweep_step`)."""
+        sweep = self._sweeps[k]
+        while sweep.low > max(j, self._first_start(k)):
+            self._sweep_step(sweep)
 
-    def _legal_action_costs(self) -> dict[tuple[int, int, int], np.ndarray]:
-        cost = {}
-        for k in range(1, self.num_cons):
-            rows, firsts = self._delta_cost_rows(k)
-            # An intermediate con's candidate affects only its own row of the allocation:
-            # reduce each intermediate row over its candidates, (g_k, N).
-            reduced = [None if r is None else r.min(axis=0) for r in rows]
-            for j in range(max(0, k - self.max_span), k):
-                for d in range(self.num_demos):
-                    lo, hi = self._offsets[d], self._offsets[d + 1]
-                    current = rows[j][:, :, lo:hi] + firsts[j][:, :, lo:hi]  # (g_j, g_k, n_d)
-                    for l in range(j + 1, k):
-                        current = allocation_step(current, reduced[l][None, :, lo:hi])
-                    total = current.min(axis=-1) if current.shape[-1] else np.full(current.shape[:2], np.inf)
-                    if np.isfinite(total).any():
-                        cost[(j, k, d)] = total
-        return cost
+    def _index_keeps(self, sweep: _EndSweep, rotations: np.ndarray, translations: np.ndarray, p: int) -> np.ndarray:
+        """Which of the sweep's demonstrations may pass a span of ``p`` deltas whose first
+        task deltas are ``rotations`` / ``translations`` (one per candidate pair): long
+        enough (``p <= n_d``) and, with ``use_index``, admitted by the index."""
+        keep = self.library.lengths[sweep.demos] >= p
+        if self.use_index and len(sweep.demos):
+            short = np.linalg.norm(translations, axis=-1) < self.tolerances.min_translation_m
+            keep &= self.library.index.candidates(rotations, short).any(axis=0)[sweep.demos]
+        self.stats.pairs += self.num_demos
+        self.stats.dropped_earlier += self.num_demos - len(sweep.demos)
+        self.stats.discarded_by_index += len(sweep.demos) - int(keep.sum())
+        return keep
+
+    def _sweep_step(self, sweep: _EndSweep) -> None:
+        """Row l = ``sweep.low - 1`` of span end k: the spans (l, k) of every demonstration
+        that may pass, and the suffix minima the longer spans (j < l, k) start from.
+
+        The allocation of deltas l..k-1 runs backwards: ``B_l[i] = row_l[i] + min_(i' > i)
+        B_(l+1)[i']`` with each intermediate row reduced over its con's candidates (they
+        affect only their own row), and the span (l, k) costs ``min_i (row_l + first_l)[i]
+        + min_(i' > i) B_(l+1)[i']`` for each (a_l, a_k): Definition 1's order-preserving
+        allocation, the same minimum as ``similarity.allocation_step`` run forwards, one
+        row per span end instead of one per span. A demonstration stays in the sweep while
+        some allocation of deltas l..k-1 exists and the index admits it for task delta l."""
+        k, l = sweep.k, sweep.low - 1
+        sweep.low = l
+        g_l, g_k = self.num_candidates[l], self.num_candidates[k]
+        lib = self.library
+        delta = dual_quaternion_relative(self.candidate_poses[l][:, None, :],
+                                         self.candidate_poses[k][None, :, :]).reshape(-1, 8)
+        rotations, translations = delta[:, :4], translation_from_dual_quaternion(delta)
+        keep = self._index_keeps(sweep, rotations, translations, k - l)
+        demos = sweep.demos[keep]
+        suffix = None if sweep.suffix is None else sweep.suffix[:, keep]
+        if len(demos) == 0:
+            sweep.finish(self._first_start(k))
+            return
+        self.stats.tested += len(demos)
+        n_max = lib.rotations.shape[1]
+        every = len(demos) == self.num_demos
+        demo_q = (lib.rotations if every else lib.rotations[demos]).reshape(-1, 4)
+        demo_t = (lib.translations if every else lib.translations[demos]).reshape(-1, 3)
+        demo_h = lib.excursions(demos).reshape(-1) if self.cost_mode == "fidelity" else np.zeros(len(demo_q))
+        pair, first = self._pair_costs(rotations, translations, demo_q, demo_t, demo_h, tie_break=False)
+        pair = pair.reshape(g_l, g_k, len(demos), n_max)
+        if lib.padded:
+            pair[..., ~lib.valid[demos]] = np.inf
+        head = pair + first.reshape(pair.shape)
+        if suffix is not None:
+            head += suffix[None]
+        total = head.min(axis=-1)  # (g_l, g_k, s)
+        for s in np.flatnonzero(np.isfinite(total).any(axis=(0, 1))).tolist():
+            d = int(demos[s])
+            self._cost[(l, k, d)] = np.ascontiguousarray(total[:, :, s])
+            self._built[l].append((k, d))
+        if l == self._first_start(k):
+            sweep.finish(l)
+            return
+        reduced = pair.min(axis=0)  # (g_k, s, n): intermediate con l, its best candidate per delta
+        if suffix is not None:
+            reduced += suffix
+        after = np.full(reduced.shape, np.inf)  # after[..., i] = min over i' > i
+        if n_max > 1:
+            after[..., :-1] = np.minimum.accumulate(reduced[..., :0:-1], axis=-1)[..., ::-1]
+        alive = np.isfinite(after).any(axis=(0, 2))
+        sweep.demos, sweep.suffix = demos[alive], after[:, alive]
+        if len(sweep.demos) == 0:
+            sweep.finish(self._first_start(k))
 
     # -- queries -------------------------------------------------------------------------
+    def row(self, j: int) -> list[tuple[int, int, np.ndarray]]:
+        """Row j of the table: ``(k, d, cost[(j, k, d)])`` in the order of span end k, then
+        demo d (only the legal ones). Builds only that row."""
+        return [(k, d, self._cost[(j, k, d)]) for k, d in self._row(j) if (j, k, d) in self._cost]
+
     def actions_from(self, j: int, a_j: int) -> list[Step]:
-        """Legal actions from state (j, a_j), in a deterministic order."""
+        """Legal actions from state (j, a_j), in a deterministic order (span end k, then
+        demo d, then con_k's candidate). Builds only row j of the table."""
         steps = []
-        for (jj, k, d), matrix in self.cost.items():
-            if jj != j:
+        for k, d in self._row(j):
+            matrix = self._cost.get((j, k, d))
+            if matrix is None:  # forbidden
                 continue
             for a_k in np.flatnonzero(np.isfinite(matrix[a_j])):
                 steps.append(Step(d, j, k, a_j, int(a_k), float(matrix[a_j, a_k])))
@@ -200,25 +325,26 @@ class CompositionProblem:
         """Makes ``step`` (its demo, span and candidates) illegal, for example because its
         joint path is not executable; both planners then choose among the others."""
         key = (step.j, step.k, step.demo)
-        if key not in self.cost:
+        self._row(step.j)
+        if key not in self._cost:
             return
-        matrix = self.cost[key].copy()
+        matrix = self._cost[key].copy()
         matrix[step.a_j, step.a_k] = np.inf
         if np.isfinite(matrix).any():
-            self.cost[key] = matrix
+            self._cost[key] = matrix
         else:
-            del self.cost[key]
+            del self._cost[key]
 
     def forbid_state(self, j: int, a_j: int) -> None:
         """Makes every action from state (j, a_j) illegal (for example: no joint
         configuration reaches that candidate of con_(j+1))."""
-        for key in [key for key in self.cost if key[0] == j]:
-            matrix = self.cost[key].copy()
+        for key in [(j, k, d) for k, d in self._row(j) if (j, k, d) in self._cost]:
+            matrix = self._cost[key].copy()
             matrix[a_j, :] = np.inf
             if np.isfinite(matrix).any():
-                self.cost[key] = matrix
+                self._cost[key] = matrix
             else:
-                del self.cost[key]
+                del self._cost[key]
 
     def covered_gaps(self) -> np.ndarray:
         """``covered[g]`` is True when some legal action spans the gap con_g -> con_(g+1)."""
@@ -233,13 +359,14 @@ class CompositionProblem:
         candidate won each demo sample."""
         feature = self.demo_features[step.demo]
         D_k = self.candidate_poses[step.k][step.a_k]
+        excursions = self.library.excursions(np.array([step.demo]))[0, :len(feature)]
         rows, winners = [], []
         for l in range(step.j, step.k):
             options = np.array([step.a_j]) if l == step.j else np.arange(self.num_candidates[l])
             delta = dual_quaternion_relative(self.candidate_poses[l][options], D_k)
             cost, first_cost = self._pair_costs(delta[:, :4], translation_from_dual_quaternion(delta),
                                                 feature.rotations, feature.translations,
-                                                self._excursions[step.demo], tie_break=True)  # (options, n_d)
+                                                excursions, tie_break=True)  # (options, n_d)
             if l == step.j:
                 cost += first_cost
             rows.append(cost.min(axis=0))

@@ -5,10 +5,11 @@ A task's bounded angles give each critical configuration ``g_j`` angle candidate
 the grid counts). :class:`~drake_lfd.planning.composition.CompositionProblem` then
 compares, for each span end k, every candidate pair ``(l, a_l; k, a_k)`` of the span
 window with every demonstration delta of the library (``N``, about 99 per
-demonstration) in one batch: ``g_k * sum_l g_l * N`` pair costs, with the kernel's
-temporaries about :data:`BYTES_PER_PAIR_COST` bytes each. Memory therefore grows with
-the square of the candidates: a 0.5 deg grid on the paper's filling-and-pouring task
-would need about 10 GiB.
+demonstration), one row ``(l, k)`` at a time: ``g_l * g_k * N`` pair costs in a batch,
+with the kernel's temporaries about :data:`BYTES_PER_PAIR_COST` bytes each. Memory
+therefore grows with the square of the candidates: a 0.5 deg grid on the paper's
+filling-and-pouring task would need gigabytes. The counts are upper bounds: the index
+of ``span_index.py`` and the sweep's pruning skip most pairs of a large library.
 
 :func:`check_problem_size` counts all of this from the task's bounds alone (Python
 integers, nothing allocated) and refuses, with one
@@ -66,6 +67,9 @@ BYTES_PER_PAIR_COST = 22
 #: the fidelity terms' temporaries beside alpha and beta (measured: 1.66 GB against
 #: 0.70 GB peak for the same problem, baseline included).
 BYTES_PER_PAIR_COST_FIDELITY = 66
+#: Bytes per (end candidate, demo delta) an open sweep of the table keeps: its suffix
+#: minima and the reduced row beside them (float64 each).
+_BYTES_PER_SWEEP_ENTRY = 16
 #: Bytes per candidate pair for its relative pose and the intermediate broadcast.
 _BYTES_PER_CANDIDATE_PAIR = 200
 #: Grids :func:`check_problem_size` tries when it suggests a coarser ``angle_grid_deg``.
@@ -88,9 +92,10 @@ class ProblemSize:
         ``pair_costs`` plus the allocation's steps in pair-cost equivalents
         (:data:`MAX_PLANNING_WORK`).
     peak_bytes : int
-        Estimated memory while the largest span end is computed.
+        Estimated memory while the largest row (one start l, one end k) is computed,
+        with every span end's sweep open.
     worst_end : int
-        That span end (0-based con index).
+        The span end with the most candidate pairs (0-based con index).
     """
 
     candidates: tuple[int, ...]
@@ -132,18 +137,24 @@ def estimate_problem_size(candidates: Sequence[int], demo_deltas: int, num_demos
     n = len(candidates)
     span = max(n - 1, 1) if max_span is None else max(int(max_span), 1)
     pairs = 0
-    steps = 0  # allocation steps, in candidate pairs
-    peak_pairs, worst_end = 0, 1
+    steps = 0  # allocation steps, in candidate pairs: one reduction and suffix minimum per row
+    peak_pairs, worst_window, worst_end, open_ends = 0, 0, 1, 0
     for k in range(1, n):
         first = max(0, k - span)
         window_pairs = sum(candidates[first:k]) * candidates[k]
         pairs += window_pairs
-        steps += sum((k - j - 1) * candidates[j] for j in range(first, k)) * candidates[k]
-        if window_pairs > peak_pairs:
-            peak_pairs, worst_end = window_pairs, k
+        steps += (k - first) * candidates[k]
+        open_ends += candidates[k]
+        row_pairs = max(candidates[first:k]) * candidates[k]  # the batch of one row (l, k)
+        peak_pairs = max(peak_pairs, row_pairs)
+        if window_pairs > worst_window:
+            worst_window, worst_end = window_pairs, k
     demo_deltas = max(int(demo_deltas), 1)
     per_pair = BYTES_PER_PAIR_COST_FIDELITY if cost == "fidelity" else BYTES_PER_PAIR_COST
+    # The largest row's batch, every open sweep's suffix minima (rows built on demand may
+    # leave every span end open) and the cost matrices kept.
     peak_bytes = (peak_pairs * (demo_deltas * per_pair + _BYTES_PER_CANDIDATE_PAIR)
+                  + open_ends * demo_deltas * _BYTES_PER_SWEEP_ENTRY
                   + pairs * max(int(num_demos), 1) * 8)
     work = (pairs + steps // ALLOCATION_STEPS_PER_PAIR_COST) * demo_deltas
     return ProblemSize(candidates, pairs, pairs * demo_deltas, work, peak_bytes, worst_end)

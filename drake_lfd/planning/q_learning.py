@@ -65,6 +65,7 @@ __all__ = [
     "TrainingResult",
     "QPlan",
     "DEFAULT_REFINE_EPISODES",
+    "Q_PLANNER_MAX_DEMOS",
     "GENERAL_PRIOR_WEIGHT",
     "episodes_to_steady",
     "never_steady",
@@ -327,6 +328,12 @@ def train(
 
 
 DEFAULT_REFINE_EPISODES = 100
+#: Largest library the Q planner serves (``plan --planner q`` refuses larger ones and
+#: names the exact planner). Training and plan-time refinement scan every action of a
+#: visited state, illegal ones included (h times the spans), so both grow linearly with
+#: the library; measured by ``benchmarks/bench_library_scale.py --section q`` (docs/method.rst,
+#: "Cost of planning").
+Q_PLANNER_MAX_DEMOS = 3000
 GENERAL_PRIOR_WEIGHT = 1e-4
 
 
