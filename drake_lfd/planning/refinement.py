@@ -36,13 +36,14 @@ from pydrake.trajectories import PiecewisePose
 
 from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
 from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
-from drake_lfd.core.timing import TimedPlan
+from drake_lfd.core.timing import TimedPlan, TimingLimits
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.trajectory_optimization import (
     OptimizationScene,
     PoseBound,
     PoseTarget,
+    SolverBudget,
     TrajectoryLimits,
     fit_bspline,
     optimize_joint_trajectory,
@@ -112,15 +113,15 @@ class RefinementOptions:
         finds that program infeasible, once more with 1.5 times as many).
     clearance_samples : int
         Path fractions the clearance is constrained at (15).
-    max_iterations : int, optional
-        SNOPT's major iteration limit (None: SNOPT's default).
-    solve_budget_s : float, optional
-        Wall time for the solver, all its attempts together (1.75 s; None: no limit).
-        When it is spent SNOPT is stopped and the unrefined plan stands, so planning
-        with ``--refine`` stays under 3 s on the paper's tasks (composition and check
-        take at most about 0.6 s, setting up and checking the refined motion 0.2 s).
-        Most solves take 0.1-1 s; the slow ones are mostly programs that end infeasible.
-    limits : TrajectoryLimits
+    budget : SolverBudget
+        SNOPT's work per attempt, in iterations (never seconds: the same plan on any
+        machine under any load). When SNOPT stops at an iteration limit, its last
+        iterate is sampled and checked like a solution, and refines the plan when it
+        passes every check.
+    limits : TrajectoryLimits, optional
+        The program's bounds (None: the task's ``timing:`` block at its
+        ``limit_fraction``, :meth:`TrajectoryLimits.of_timing`, so the refined motion
+        uses the same share of the limits as the composed plan's timing).
     """
 
     tube_position_m: float = 0.15
@@ -132,14 +133,14 @@ class RefinementOptions:
     check_fraction: float = 0.5
     pass_speed_m_s: float | None = 0.4
     pass_acceleration_m_s2: float | None = 1.5
+    program_pass_speed_m_s: float | None = 0.4 / math.sqrt(3.0)
     path_constraint_margin_rad: float = math.radians(3.0)
     path_constraint_samples: int = 6
     path_constraint_check_margin_rad: float = math.radians(1.5)
     num_control_points: int | None = None
     clearance_samples: int = 15
-    max_iterations: int | None = None
-    solve_budget_s: float | None = 1.75
-    limits: TrajectoryLimits = TrajectoryLimits()
+    budget: SolverBudget = SolverBudget()
+    limits: TrajectoryLimits | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -169,6 +170,14 @@ class RefinementReport:
         The path fraction of each sample of the optimized plan (when the solver
         succeeded): with it an executed run is measured against the tube
         (:func:`tube_deviation`). Not in the JSON.
+    evaluations : int
+        Evaluations of the program by SNOPT, all attempts (the work done: the same on
+        any machine).
+    attempts : int
+        SNOPT solves (1, or 2 when the first found the program infeasible).
+    budget_spent : bool
+        The motion is SNOPT's last iterate at its iteration limit (checked like a
+        solution).
     """
 
     method: str
@@ -181,6 +190,9 @@ class RefinementReport:
     tube_max_position_m: float
     tube_max_rotation_rad: float
     path_fractions: np.ndarray | None = dataclasses.field(default=None, compare=False, repr=False)
+    evaluations: int = 0
+    attempts: int = 0
+    budget_spent: bool = False
 
     @property
     def refined(self) -> bool:
@@ -196,16 +208,23 @@ class RefinementReport:
                     f"(solved in {self.solve_time_s:.2f} s)")
         return f"refinement failed, the unrefined plan stands: {self.reason}"
 
-    def to_json(self) -> dict:
-        """The ``refinement`` object of ``plan --json`` (docs/cli.rst)."""
+    def to_json(self, *, wall_times: bool = True) -> dict:
+        """The ``refinement`` object of ``plan --json`` and of each ``simulate`` trial
+        (docs/cli.rst). ``wall_times=False`` leaves out the two wall-time measurements
+        (``solve_time_s``, ``total_time_s``): the rest depends on the inputs only, so a
+        plan's document is the same bytes on any machine."""
         def number(x):
             return None if not math.isfinite(x) else float(x)
 
-        return {"method": self.method, "status": self.status, "reason": self.reason,
-                "solve_time_s": float(self.solve_time_s), "total_time_s": float(self.total_time_s),
-                "duration_s": number(self.duration_s), "unrefined_duration_s": number(self.unrefined_duration_s),
-                "tube_max_position_m": number(self.tube_max_position_m),
-                "tube_max_rotation_rad": number(self.tube_max_rotation_rad)}
+        document = {"method": self.method, "status": self.status, "reason": self.reason}
+        if wall_times:
+            document.update(solve_time_s=float(self.solve_time_s), total_time_s=float(self.total_time_s))
+        document.update(duration_s=number(self.duration_s), unrefined_duration_s=number(self.unrefined_duration_s),
+                        tube_max_position_m=number(self.tube_max_position_m),
+                        tube_max_rotation_rad=number(self.tube_max_rotation_rad),
+                        evaluations=int(self.evaluations), attempts=int(self.attempts),
+                        budget_spent=bool(self.budget_spent))
+        return document
 
 
 # -- the composed path at path fractions ------------------------------------------------
@@ -332,13 +351,26 @@ def _path_constraint_violation(result: PlanResult, plan: TimedPlan, X_WE: list, 
     return None
 
 
-def _duration_guess(guess, scene: OptimizationScene, limits: TrajectoryLimits) -> float:
-    """Twice the time the guess takes with every joint at its speed bound (the bound
-    with room for accelerating and braking), at least 0.5 s."""
-    q = np.array([guess.value(float(s))[:, 0] for s in np.linspace(0.0, 1.0, 101)])
-    travel = np.abs(np.diff(q, axis=0)).sum(axis=0)
-    speed = limits.velocity_fraction * scene.plant.GetVelocityUpperLimits()
-    return max(2.0 * float(np.max(travel / speed)), 0.5)
+def _through_critical_configurations(fractions: np.ndarray, q_start: np.ndarray, q_due: list,
+                                     q_goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The plain optimizer's guess: straight in joint space from each critical
+    configuration to the next (the composed path's configurations there), at their
+    path fractions; samples (m,) and (m, 6)."""
+    knots = np.vstack([q_start, *q_due, q_goal])
+    s = np.linspace(0.0, 1.0, 200)
+    return s, np.column_stack([np.interp(s, fractions, knots[:, j]) for j in range(knots.shape[1])])
+
+
+def _duration_guess(guess, limits: TrajectoryLimits) -> float:
+    """The shortest duration at which the guess ``q(s)`` keeps every joint within its
+    speed and acceleration bounds (``|q'(s)| / T`` and ``|q''(s)| / T^2`` on 201 path
+    fractions), at least 0.5 s: the guess starts within the bounds the convex hull
+    enforces, and no slower than it must be."""
+    s = np.linspace(0.0, 1.0, 201)
+    velocity, acceleration = guess.MakeDerivative(1), guess.MakeDerivative(2)
+    dq = np.max(np.abs(np.hstack([velocity.value(float(x)) for x in s])))
+    ddq = np.max(np.abs(np.hstack([acceleration.value(float(x)) for x in s])))
+    return max(dq / limits.joint_speed_rad_s, math.sqrt(ddq / limits.acceleration_rad_s2), 0.5)
 
 
 def _optimize(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene | None,
@@ -346,9 +378,11 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     start = time.perf_counter()
     unrefined = result.timed.duration if result.timed is not None else math.nan
 
+    work = {"evaluations": 0, "attempts": 0, "budget_spent": False}
+
     def report(status, reason, solve=0.0, duration=math.nan, position=math.nan, rotation=math.nan, fractions=None):
         return RefinementReport(method, status, reason, solve, time.perf_counter() - start, duration,
-                                unrefined, position, rotation, fractions)
+                                unrefined, position, rotation, fractions, **work)
 
     if not result.planned or result.joint_path is None or not result.joint_path.executable:
         return dataclasses.replace(result, refinement=report("failed", "no executable composed plan to refine"))
@@ -366,32 +400,41 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     bounds = _path_constraint_bounds(result, fractions, options)
     if method == "refine":
         bounds += _tube_bounds(reference, options)
-    targets = [PoseTarget(float(s), X, options.con_position_tolerance_m, options.con_rotation_tolerance_rad)
-               for s, X in zip(fractions[1:-1], reference.critical_poses[1:-1])]
+    # Each inner critical configuration's configuration on the composed joint path (the
+    # pass-speed bound is linearized there).
+    q_due = [q_path[min(int(np.searchsorted(s_path, f)), len(q_path) - 1)] for f in fractions[1:-1]]
+    pass_speed = options.program_pass_speed_m_s if options.pass_speed_m_s is not None else None
+    targets = [PoseTarget(float(s), X, options.con_position_tolerance_m, options.con_rotation_tolerance_rad,
+                          pass_speed, q)
+               for s, X, q in zip(fractions[1:-1], reference.critical_poses[1:-1], q_due)]
+    limits = options.limits or TrajectoryLimits.of_timing(result.task.timing or TimingLimits())
     count = options.num_control_points or 6 + 3 * (len(fractions) - 1)
     # A program found locally infeasible (SNOPT info 13) is tried once more with 1.5 times
     # the control points: a spline too stiff for the tube is the usual cause.
     solve_time = 0.0
-    deadline = None if options.solve_budget_s is None else time.perf_counter() + options.solve_budget_s
     for attempt in (count, count + count // 2):
         if method == "refine":
             guess = fit_bspline(s_path, q_path, attempt)
         else:
-            line = np.linspace(0.0, 1.0, 4 * attempt)
-            guess = fit_bspline(line, q_path[0] + line[:, None] * (q_goal - q_path[0]), attempt)
+            guess = fit_bspline(*_through_critical_configurations(fractions, q_path[0], q_due, q_goal), attempt)
         solved = optimize_joint_trajectory(
-            scene, guess, guess_duration_s=_duration_guess(guess, scene, options.limits), targets=targets,
-            bounds=bounds, clearance_samples=options.clearance_samples, limits=options.limits,
-            max_iterations=options.max_iterations, deadline_s=deadline)
+            scene, guess, guess_duration_s=_duration_guess(guess, limits), targets=targets,
+            bounds=bounds, clearance_samples=options.clearance_samples, limits=limits, budget=options.budget)
         solve_time += solved.solve_time_s
+        work["evaluations"] += solved.evaluations
+        work["attempts"] += 1
         if solved.success or "Infeasible" not in solved.status or options.num_control_points:
             break
+    work["budget_spent"] = solved.budget_spent
     solved = dataclasses.replace(solved, solve_time_s=solve_time)
-    if not solved.success:
+    if solved.safety_stopped:
+        return dataclasses.replace(result, refinement=report("failed", f"error: {solved.status}", solve_time))
+    if solved.trajectory is None:
         return dataclasses.replace(result, refinement=report("failed", f"optimizer: {solved.status}",
                                                              solved.solve_time_s))
     t, q, X, indices, s_samples = sample_trajectory(scene, solved.trajectory, fractions, time_step=dt,
-                                                    tool_speed_m_s=options.limits.tool_speed_m_s,
+                                                    tool_speed_m_s=limits.tool_speed_m_s,
+                                                    tool_acceleration_m_s2=limits.tool_acceleration_m_s2,
                                                     pass_speed_m_s=options.pass_speed_m_s,
                                                     pass_acceleration_m_s2=options.pass_acceleration_m_s2)
     poses = dual_quaternion_from_matrices(np.array([x.GetAsMatrix4() for x in X]))
@@ -400,16 +443,18 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     duration = plan.duration
 
     def failed(reason, position=math.nan, rotation=math.nan):
+        if solved.budget_spent:
+            reason = f"{reason}; SNOPT's last iterate at its {solved.status}"
         return dataclasses.replace(result, refinement=report("failed", reason, solved.solve_time_s, duration,
                                                              position, rotation, s_samples))
 
     if not followed.executable:
         b = followed.blocker
         return failed(f"check: {b.reason}: {b.detail} (t = {b.time_s:.2f} s)")
-    limits = checker.limits
+    tolerances = checker.limits
     for con, (c_position, c_rotation) in enumerate(followed.critical_errors, start=1):
-        if c_position > options.check_fraction * limits.position_tolerance_m or \
-                c_rotation > options.check_fraction * limits.rotation_tolerance_rad:
+        if c_position > options.check_fraction * tolerances.position_tolerance_m or \
+                c_rotation > options.check_fraction * tolerances.rotation_tolerance_rad:
             return failed(f"check: misses con_{con} by {1000 * c_position:.1f} mm, "
                           f"{math.degrees(c_rotation):.2f} deg (allowed: {options.check_fraction:g} of the "
                           f"success tolerances)")
