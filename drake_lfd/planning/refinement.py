@@ -53,6 +53,9 @@ from drake_lfd.robot.trajectory_optimization import (
 __all__ = [
     "RefinementOptions",
     "RefinementReport",
+    "SolverBudget",
+    "TrajectoryLimits",
+    "OptimizationScene",
     "refine_plan",
     "plain_plan",
     "tube_deviation",
@@ -140,6 +143,7 @@ class RefinementOptions:
     num_control_points: int | None = None
     clearance_samples: int = 15
     budget: SolverBudget = SolverBudget()
+    guess_weight: float = 0.0
     limits: TrajectoryLimits | None = None
 
 
@@ -351,6 +355,24 @@ def _path_constraint_violation(result: PlanResult, plan: TimedPlan, X_WE: list, 
     return None
 
 
+def _fractions_by_joint_arc_length(t: np.ndarray, q: np.ndarray, due: list, fractions: np.ndarray) -> np.ndarray:
+    """Path fractions (m,) of the composed joint path's samples (times ``t`` (m,), joints
+    ``q`` (m, 6)): each critical configuration at its fraction, and within each span
+    by joint-space arc length (the time fraction where a span does not move). The
+    composed timing rests and slows where the path turns; by time its spline guess
+    would speed up and slow down along ``s``, its second derivative would be large, and
+    so would the duration the guess needs to keep within the acceleration bound."""
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(q, axis=0), axis=1))])
+    arc_due = np.interp(due, t, arc)
+    s = t / t[-1]
+    for j in range(len(due) - 1):
+        inside = (t >= due[j] - 1e-9) & (t <= due[j + 1] + 1e-9)
+        length = arc_due[j + 1] - arc_due[j]
+        if length > 1e-9:
+            s[inside] = fractions[j] + (arc[inside] - arc_due[j]) / length * (fractions[j + 1] - fractions[j])
+    return np.clip(s, 0.0, 1.0)
+
+
 def _through_critical_configurations(fractions: np.ndarray, q_start: np.ndarray, q_due: list,
                                      q_goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The plain optimizer's guess: straight in joint space from each critical
@@ -393,10 +415,11 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     dt = checker.time_step
     # The composed joint path at path fractions (its samples after the plan's end are the settling).
     within = path.t <= timed.duration + 1e-9
-    s_path = path.t[within] / timed.duration
     q_path = path.q[within]
     q_goal = path.q[min(int(round(timed.duration / dt)), len(path.q) - 1)]
     q_path[-1] = q_goal
+    s_path = _fractions_by_joint_arc_length(path.t[within], q_path, [timed.times[i] for i in timed.critical_indices],
+                                            fractions)
     bounds = _path_constraint_bounds(result, fractions, options)
     if method == "refine":
         bounds += _tube_bounds(reference, options)
@@ -409,29 +432,65 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
                for s, X, q in zip(fractions[1:-1], reference.critical_poses[1:-1], q_due)]
     limits = options.limits or TrajectoryLimits.of_timing(result.task.timing or TimingLimits())
     count = options.num_control_points or 6 + 3 * (len(fractions) - 1)
-    # A program found locally infeasible (SNOPT info 13) is tried once more with 1.5 times
-    # the control points: a spline too stiff for the tube is the usual cause.
-    solve_time = 0.0
-    for attempt in (count, count + count // 2):
-        if method == "refine":
-            guess = fit_bspline(s_path, q_path, attempt)
-        else:
-            guess = fit_bspline(*_through_critical_configurations(fractions, q_path[0], q_due, q_goal), attempt)
+    # Up to two rounds, the second with 1.5 times the control points (a spline too stiff
+    # for the tube is a usual cause of an infeasible program; and a different program is
+    # a fresh chance where SNOPT ended in a poor local solution): the first round whose
+    # motion passes every check refines the plan. A fixed number of rounds, so the work
+    # stays bounded and the answer deterministic.
+    solve_time, failure = 0.0, None
+    rounds = (count,) if options.num_control_points else (count, count + count // 2)
+    pins = list(zip(fractions[1:-1], q_due))
+    samples = (s_path, q_path) if method == "refine" else _through_critical_configurations(fractions, q_path[0],
+                                                                                          q_due, q_goal)
+    for attempt in rounds:
+        guess = fit_bspline(*samples, attempt, rest_ends=True, pins=pins)
         solved = optimize_joint_trajectory(
             scene, guess, guess_duration_s=_duration_guess(guess, limits), targets=targets,
-            bounds=bounds, clearance_samples=options.clearance_samples, limits=limits, budget=options.budget)
+            bounds=bounds, clearance_samples=options.clearance_samples, limits=limits, budget=options.budget,
+            guess_weight=options.guess_weight)
         solve_time += solved.solve_time_s
         work["evaluations"] += solved.evaluations
         work["attempts"] += 1
-        if solved.success or "Infeasible" not in solved.status or options.num_control_points:
-            break
-    work["budget_spent"] = solved.budget_spent
-    solved = dataclasses.replace(solved, solve_time_s=solve_time)
-    if solved.safety_stopped:
-        return dataclasses.replace(result, refinement=report("failed", f"error: {solved.status}", solve_time))
-    if solved.trajectory is None:
-        return dataclasses.replace(result, refinement=report("failed", f"optimizer: {solved.status}",
-                                                             solved.solve_time_s))
+        work["budget_spent"] = solved.budget_spent
+        if solved.safety_stopped:
+            return dataclasses.replace(result, refinement=report("failed", f"error: {solved.status}", solve_time))
+        if solved.trajectory is None:
+            failure = (f"optimizer: {solved.status}", math.nan, math.nan, math.nan, None)
+            continue
+        checked = _check_motion(result, checker, scene, solved, fractions, limits, options, method)
+        if checked.reason is None:
+            return dataclasses.replace(result, timed=checked.plan, joint_path=checked.followed,
+                                       refinement=report("refined", "", solve_time, checked.plan.duration,
+                                                         checked.position, checked.rotation, checked.fractions))
+        reason = checked.reason
+        if solved.budget_spent:
+            reason = f"{reason}; SNOPT's last iterate at its {solved.status}"
+        failure = (reason, checked.plan.duration, checked.position, checked.rotation, checked.fractions)
+    reason, duration, position, rotation, s_samples = failure
+    return dataclasses.replace(result, refinement=report("failed", reason, solve_time, duration, position, rotation,
+                                                         s_samples))
+
+
+@dataclasses.dataclass(frozen=True)
+class _Checked:
+    """A solved motion, sampled, followed and checked: ``reason`` None when it passes."""
+
+    reason: str | None
+    plan: TimedPlan
+    followed: object
+    position: float = math.nan
+    rotation: float = math.nan
+    fractions: np.ndarray | None = None
+
+
+def _check_motion(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene, solved,
+                  fractions: np.ndarray, limits: TrajectoryLimits, options: RefinementOptions,
+                  method: str) -> _Checked:
+    """Samples the solver's motion at the controller's period (module docstring), follows
+    it with ``checker`` and checks it: executable, every critical configuration within
+    ``check_fraction`` of the success tolerances, the path constraints, the tube
+    (``refine``) and shorter than the composed plan."""
+    timed, dt = result.timed, checker.time_step
     t, q, X, indices, s_samples = sample_trajectory(scene, solved.trajectory, fractions, time_step=dt,
                                                     tool_speed_m_s=limits.tool_speed_m_s,
                                                     tool_acceleration_m_s2=limits.tool_acceleration_m_s2,
@@ -442,38 +501,33 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     followed = checker.follow(plan, q[0])
     duration = plan.duration
 
-    def failed(reason, position=math.nan, rotation=math.nan):
-        if solved.budget_spent:
-            reason = f"{reason}; SNOPT's last iterate at its {solved.status}"
-        return dataclasses.replace(result, refinement=report("failed", reason, solved.solve_time_s, duration,
-                                                             position, rotation, s_samples))
+    def checked(reason, position=math.nan, rotation=math.nan):
+        return _Checked(reason, plan, followed, position, rotation, s_samples)
 
     if not followed.executable:
         b = followed.blocker
-        return failed(f"check: {b.reason}: {b.detail} (t = {b.time_s:.2f} s)")
+        return checked(f"check: {b.reason}: {b.detail} (t = {b.time_s:.2f} s)")
     tolerances = checker.limits
     for con, (c_position, c_rotation) in enumerate(followed.critical_errors, start=1):
         if c_position > options.check_fraction * tolerances.position_tolerance_m or \
                 c_rotation > options.check_fraction * tolerances.rotation_tolerance_rad:
-            return failed(f"check: misses con_{con} by {1000 * c_position:.1f} mm, "
-                          f"{math.degrees(c_rotation):.2f} deg (allowed: {options.check_fraction:g} of the "
-                          f"success tolerances)")
+            return checked(f"check: misses con_{con} by {1000 * c_position:.1f} mm, "
+                           f"{math.degrees(c_rotation):.2f} deg (allowed: {options.check_fraction:g} of the "
+                           f"success tolerances)")
     X_followed = [scene.X_WE(x) for x in followed.q]
     s_followed = np.interp(np.minimum(followed.t, duration), t, s_samples)
     position, rotation = tube_deviation(timed, s_followed, X_followed)
     violation = _path_constraint_violation(result, plan, X_followed, followed.t,
                                            options.path_constraint_check_margin_rad)
     if violation is not None:
-        return failed(f"check: {violation}", position, rotation)
+        return checked(f"check: {violation}", position, rotation)
     if method == "refine" and (position > options.tube_position_m or rotation > options.tube_rotation_rad):
-        return failed(f"check: leaves the tube ({1000 * position:.0f} mm, {math.degrees(rotation):.1f} deg; "
-                      f"tube {1000 * options.tube_position_m:.0f} mm, "
-                      f"{math.degrees(options.tube_rotation_rad):.0f} deg)", position, rotation)
-    if not duration < unrefined:
-        return failed(f"not shorter ({duration:.2f} s, unrefined {unrefined:.2f} s)", position, rotation)
-    return dataclasses.replace(result, timed=plan, joint_path=followed,
-                               refinement=report("refined", "", solved.solve_time_s, duration, position, rotation,
-                                                 s_samples))
+        return checked(f"check: leaves the tube ({1000 * position:.0f} mm, {math.degrees(rotation):.1f} deg; "
+                       f"tube {1000 * options.tube_position_m:.0f} mm, "
+                       f"{math.degrees(options.tube_rotation_rad):.0f} deg)", position, rotation)
+    if not duration < timed.duration:
+        return checked(f"not shorter ({duration:.2f} s, unrefined {timed.duration:.2f} s)", position, rotation)
+    return checked(None, position, rotation)
 
 
 def refine_plan(result: PlanResult, checker: JointPathChecker, *, scene: OptimizationScene | None = None,
@@ -498,7 +552,7 @@ def refine_plan(result: PlanResult, checker: JointPathChecker, *, scene: Optimiz
 
 def plain_plan(result: PlanResult, checker: JointPathChecker, *, scene: OptimizationScene | None = None,
                options: RefinementOptions = RefinementOptions()) -> PlanResult:
-    """The plain optimizer's plan, like :func:`refine_plan` but from a straight
-    joint-space line between ``result``'s start and goal configurations and without
-    the tube (the critical configurations pinned at the same path fractions)."""
+    """The plain optimizer's plan, like :func:`refine_plan` but without the tube, from
+    straight joint-space lines between ``result``'s configurations at its critical
+    configurations (pinned at the same path fractions)."""
     return _optimize(result, checker, scene, options, "plain")
