@@ -138,7 +138,7 @@ class RefinementOptions:
     pass_acceleration_m_s2: float | None = 1.5
     program_pass_speed_m_s: float | None = 0.4 / math.sqrt(3.0)
     path_constraint_margin_rad: float = math.radians(3.0)
-    path_constraint_samples: int = 6
+    path_constraint_samples: int = 9
     path_constraint_check_margin_rad: float = math.radians(1.5)
     num_control_points: int | None = None
     clearance_samples: int = 15
