@@ -100,9 +100,9 @@ def test_the_plain_optimizer_is_the_peer_without_a_tube(transferring, refined):
 
 @pytest.mark.parametrize("options, expected", [
     (RefinementOptions(tube_position_m=1e-4, tube_rotation_rad=math.radians(0.01)), ""),
-    # Three major iterations: SNOPT's last iterate is checked, and refused (both rounds'
+    # Five major iterations: SNOPT's last iterate is checked, and refused (both rounds'
     # tilt the cup).
-    (RefinementOptions(budget=SolverBudget(major_iterations=3)), "SNOPT's last iterate at its major iteration limit"),
+    (RefinementOptions(budget=SolverBudget(major_iterations=5)), "SNOPT's last iterate at its major iteration limit"),
     # The wall-clock safety stop is an error, said as such (never a quiet change of plan).
     (RefinementOptions(budget=SolverBudget(safety_stop_s=0.0)), "error: wall-clock safety stop (SNOPT stopped)"),
 ])
@@ -145,19 +145,21 @@ def test_the_plan_document_holds_no_wall_time(refined):
 
 
 def test_an_iterate_at_the_iteration_limit_refines_when_it_passes_the_checks(transferring, refined):
-    """Measured on this plan: SNOPT converges after 50 evaluations; stopped at 10 major
-    iterations (SNOPT info 32) its last iterate is feasible, and the project's checks
-    accept it; at 3 it tilts the cup too far and is refused."""
+    """Measured on this plan: with no practical limit SNOPT converges after 103
+    evaluations; stopped at the default 20 major iterations (SNOPT info 32) its last
+    iterate is feasible, the project's checks accept it, and it is as short; at 10 it
+    tilts the cup too far and is refused."""
     composed, checker, scene = transferring
-    assert not refined.refinement.budget_spent
-    stopped = refine_plan(composed, checker, scene=scene,
-                          options=RefinementOptions(budget=SolverBudget(major_iterations=10)))
-    report = stopped.refinement
+    converged = refine_plan(composed, checker, scene=scene,
+                            options=RefinementOptions(budget=SolverBudget(major_iterations=1000)))
+    assert converged.refinement.refined and not converged.refinement.budget_spent
+    report = refined.refinement
     assert report.budget_spent and report.status == "refined", report.reason
-    assert report.evaluations < refined.refinement.evaluations
-    assert stopped.joint_path.executable and stopped.timed.duration < composed.timed.duration
+    assert report.evaluations < converged.refinement.evaluations
+    assert refined.joint_path.executable and refined.timed.duration < composed.timed.duration
+    assert refined.timed.duration <= 1.02 * converged.timed.duration
     refused = refine_plan(composed, checker, scene=scene,
-                          options=RefinementOptions(budget=SolverBudget(major_iterations=3)))
+                          options=RefinementOptions(budget=SolverBudget(major_iterations=10)))
     assert refused.refinement.budget_spent and refused.refinement.status == "failed"
     assert "path constraint" in refused.refinement.reason and "major iteration limit" in refused.refinement.reason
     assert refused.timed is composed.timed

@@ -101,10 +101,16 @@ class RefinementOptions:
         And with at most this acceleration (1.5 m/s^2): accelerating through one at
         5 m/s^2 and 0.4 m/s, a trial missed it by 4.6 mm; the lag grows with both.
         None: not limited.
+    program_pass_speed_m_s : float, optional
+        The program's own bound on E's speed at each inner critical configuration,
+        along each world axis (0.4 / sqrt(3) m/s, so its magnitude is within
+        ``pass_speed_m_s``: the optimizer plans the slow passage; the retiming above
+        only mends what is left). None, or ``pass_speed_m_s`` None: no such bound.
     path_constraint_margin_rad : float
         A path constraint's tolerance is tightened by this in the program (3 deg).
     path_constraint_samples : int
-        Path fractions each path constraint is constrained at, per span it covers (6).
+        Path fractions each path constraint is constrained at, per span it covers (9;
+        with 6, 2 of 10 transferring plans tilted 9.0-9.4 deg between samples).
     path_constraint_check_margin_rad : float
         The check of the result holds each path constraint to its tolerance less this
         (1.5 deg): the closed loop tracks the motion with some lag, and a refined
@@ -113,7 +119,8 @@ class RefinementOptions:
     num_control_points : int, optional
         B-spline control points (cubic; None: 6 plus 3 per span, so that after the ends'
         zero velocity and acceleration each span keeps about 3 free ones; when SNOPT
-        finds that program infeasible, once more with 1.5 times as many).
+        finds that program infeasible or its motion fails a check, once more with 1.5
+        times as many).
     clearance_samples : int
         Path fractions the clearance is constrained at (15).
     budget : SolverBudget
@@ -143,7 +150,6 @@ class RefinementOptions:
     num_control_points: int | None = None
     clearance_samples: int = 15
     budget: SolverBudget = SolverBudget()
-    guess_weight: float = 0.0
     limits: TrajectoryLimits | None = None
 
 
@@ -446,8 +452,7 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
         guess = fit_bspline(*samples, attempt, rest_ends=True, pins=pins)
         solved = optimize_joint_trajectory(
             scene, guess, guess_duration_s=_duration_guess(guess, limits), targets=targets,
-            bounds=bounds, clearance_samples=options.clearance_samples, limits=limits, budget=options.budget,
-            guess_weight=options.guess_weight)
+            bounds=bounds, clearance_samples=options.clearance_samples, limits=limits, budget=options.budget)
         solve_time += solved.solve_time_s
         work["evaluations"] += solved.evaluations
         work["attempts"] += 1

@@ -375,7 +375,6 @@ def optimize_joint_trajectory(
     clearance_samples: int = 40,
     limits: TrajectoryLimits = TrajectoryLimits(),
     budget: SolverBudget = SolverBudget(),
-    guess_weight: float = 0.0,
 ) -> OptimizedTrajectory:
     """Solves the program of the module docstring from ``guess`` (a B-spline in path
     fraction, on [0, 1], its ends the fixed start and goal configurations).
@@ -449,11 +448,6 @@ def optimize_joint_trajectory(
         for s in np.linspace(0.0, 1.0, clearance_samples):
             trajopt.AddPathPositionConstraint(clearance, float(s))
     prog = trajopt.get_mutable_prog()
-    if guess_weight > 0.0:
-        # A convex pull toward the guess: SNOPT's quasi-Newton Hessian of a pure
-        # minimum-time program is singular along the path; this makes it definite.
-        variables = np.asarray(trajopt.control_points()).reshape(-1)
-        prog.AddQuadraticErrorCost(guess_weight * np.eye(len(variables)), control.reshape(-1), variables)
     # The guess in time: its duration is the initial guess of T.
     knots = np.asarray(guess.basis().knots()) * guess_duration_s
     trajopt.SetInitialGuess(BsplineTrajectory(BsplineBasis(guess.basis().order(), knots),
