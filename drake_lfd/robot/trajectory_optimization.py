@@ -111,7 +111,7 @@ class SolverBudget:
         ``wall-clock safety stop ...``, ``safety_stopped`` set), never a quiet plan.
     """
 
-    major_iterations: int = 20
+    major_iterations: int = 100
     minor_iterations: int = 500
     iterations: int = 20000
     safety_stop_s: float | None = 60.0
