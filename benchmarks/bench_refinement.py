@@ -1,6 +1,7 @@
 """Refinement by trajectory optimization beside the unrefined plan and the plain optimizer.
 
-Run: ``python benchmarks/bench_refinement.py [--pick-and-place 10] [--seeds 20] [--cost fidelity]``.
+Run: ``python benchmarks/bench_refinement.py [--pick-and-place 10] [--seeds 20] [--cost fidelity]
+[--no-closed-loop] [--tasks NAME ...]``.
 
 The plain optimizer here is the independent peer of the acceptance figures: Drake's
 ``KinematicTrajectoryOptimization`` through the same critical configurations, without
@@ -228,13 +229,16 @@ def _statistics_lines(label: str, rows: list[dict]) -> list[str]:
     return lines
 
 
-def refinement_statistics(seeds: int, cost: str, pick_and_place: list) -> list[str]:
+def refinement_statistics(seeds: int, cost: str, pick_and_place: list, only: tuple = ()) -> list[str]:
     """Part 1 of the module docstring: over trial seeds 0..seeds-1 of each paper task,
-    then one trial of each pick-and-place task file of ``pick_and_place``."""
+    then one trial of each pick-and-place task file of ``pick_and_place`` (``only``:
+    just those of these names, ``pick-and-place`` for those). Each job's lines are also
+    printed as it finishes."""
     lines = []
     jobs = [(name, load_task(scenarios_directory() / f"{name}.yaml"), library, range(seeds))
             for name, library in PAPER_TASKS]
     jobs.append(("pick-and-place", None, "paper5", pick_and_place))
+    jobs = [job for job in jobs if not only or job[0] in only]
     for name, task, library, trials in jobs:
         features = library_features(Library.open(library))
         rows, scene = [], None
@@ -248,8 +252,9 @@ def refinement_statistics(seeds: int, cost: str, pick_and_place: list) -> list[s
                 scene = OptimizationScene(workcell)
             rows.append(_refinement_row(concrete, checker, composed, scene))
         if rows:
-            lines += _statistics_lines(f"{name} ({library}, --cost {cost}, {len(rows)} plans)", rows)
-        print(f"{name}: statistics done", flush=True)
+            done = _statistics_lines(f"{name} ({library}, --cost {cost}, {len(rows)} plans)", rows)
+            lines += done
+            print("\n".join(done), flush=True)
     return lines
 
 
@@ -261,13 +266,16 @@ def main() -> None:
                         help="the planner's action cost (drake-lfd plan's default: fidelity)")
     parser.add_argument("--seeds", type=int, default=20, help="trial seeds of each paper task's statistics")
     parser.add_argument("--no-closed-loop", action="store_true", help="skip the closed-loop comparison")
+    parser.add_argument("--tasks", nargs="+", default=(), metavar="NAME",
+                        help="statistics of these jobs only (transferring, filling_pouring, assembling, "
+                             "pick-and-place)")
     args = parser.parse_args()
     sims = scenarios_directory()
     libraries = {"paper5": library_features(Library.open("paper5")),
                  "paper6": library_features(Library.open("paper6"))}
     with tempfile.TemporaryDirectory() as directory:
         pick_and_place = write_pick_and_place_tasks(Path(directory), args.pick_and_place)
-        statistics = refinement_statistics(args.seeds, args.cost, pick_and_place)
+        statistics = refinement_statistics(args.seeds, args.cost, pick_and_place, tuple(args.tasks))
         rows = []
         if not args.no_closed_loop:
             for name, library in PAPER_TASKS:
