@@ -114,7 +114,7 @@ class SolverBudget:
     major_iterations: int = 100
     minor_iterations: int = 500
     iterations: int = 20000
-    safety_stop_s: float | None = 60.0
+    safety_stop_s: float | None = 600.0
 
 
 # Links standing on the table: never checked against it (as in joint_path.py).
