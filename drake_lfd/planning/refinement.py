@@ -15,7 +15,10 @@ is verified like any plan: sampled at the controller's period, timed as a
 indices at the samples where each critical configuration is due) and followed by the
 :class:`~drake_lfd.robot.joint_path.JointPathChecker`; the path constraints and the
 tube are checked on the followed joint path. When the optimizer fails or any check
-fails, the unrefined plan stands and the report says why.
+fails, the unrefined plan stands and the report says why. The solve is bounded by
+SNOPT's iteration counts (:class:`SolverBudget`), never by time, and the bounds are
+the task's ``timing:`` limits at its ``limit_fraction``: the same inputs give the same
+plan on any machine under any load.
 
 :func:`plain_plan` is the peer without demonstrations: the same program and checks, from
 a straight joint-space line between the composed plan's start and goal configurations,
