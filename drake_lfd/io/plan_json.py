@@ -107,7 +107,7 @@ def plan_json(result: PlanResult, cost: str = "paper", script_paths=None) -> dic
             "refine_episodes": result.refine_episodes,
         }
     if result.refinement is not None:
-        document["refinement"] = result.refinement.to_json()
+        document["refinement"] = result.refinement.to_json(wall_times=False)
     return document
 
 

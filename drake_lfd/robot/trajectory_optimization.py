@@ -8,16 +8,22 @@ free duration ``T``; docs/method.rst, Refinement by trajectory optimization):
 - joint position bounds: the UR5e's limits, narrowed for the elbow (q3) and the wrist
   (q5) to the singularity-free interval (``|sin q| >= margin``) the initial guess lies
   in; bounds on the control points hold on the whole path (convex hull);
-- joint speed and acceleration bounds (on the whole path, by the same property);
+- joint speed and acceleration bounds (on the whole path, by the same property):
+  :class:`TrajectoryLimits`, by default a task's ``timing:`` limits at its
+  ``limit_fraction`` (:meth:`TrajectoryLimits.of_timing`);
 - zero path velocity and acceleration at both ends (the arm starts and ends at rest);
 - pose targets (:class:`PoseTarget`: a position box and an orientation cone of E at a
-  fixed path fraction), pose bounds along the path (:class:`PoseBound`: E's distance
+  fixed path fraction, and optionally a bound on E's speed there, linear in the control
+  points and the duration), pose bounds along the path (:class:`PoseBound`: E's distance
   to a point and its angle to a rotation, at a fixed path fraction: the task's
   orientation constraints and the demonstration tube);
 - clearance: ``MinimumDistanceLowerBoundConstraint`` at evenly spread path fractions on
   :class:`OptimizationScene`, the work cell's geometry with every robot and tool
   geometry checked against every obstacle, shell and the table (the base and shoulder
   links, which stand on the table, excepted).
+
+SNOPT's work is bounded by iteration counts (:class:`SolverBudget`), never by a clock;
+at an iteration limit its last iterate is returned for the caller to check.
 
 Constraints at path fractions hold at those samples only: callers sample densely and
 keep margins, and check the result (``planning/refinement.py`` runs the joint-path
@@ -45,17 +51,20 @@ from pydrake.multibody.inverse_kinematics import (
     PositionConstraint,
 )
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.planning import KinematicTrajectoryOptimization
 from pydrake.solvers import SnoptSolver, SolverOptions
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.trajectories import BsplineTrajectory
 
+from drake_lfd.core.timing import TimingLimits
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, add_ur5e
 from drake_lfd.robot.scene import add_scene
 from drake_lfd.robot.workcell import Workcell
 
 __all__ = [
     "TrajectoryLimits",
+    "SolverBudget",
     "PoseTarget",
     "PoseBound",
     "OptimizationScene",
@@ -67,14 +76,45 @@ __all__ = [
 
 # A loose optimality tolerance: a feasible, nearly minimum-time motion is the goal, and
 # SNOPT's default (1e-6) spends most of the solve shaving the last hundredths of a second.
-_SNOPT_OPTIONS = {"Iterations limit": 100000, "Major optimality tolerance": 1e-2}
-# What the deadline's callback raises (Drake re-raises it from Solve as a RuntimeError
+# No option here reads a clock ("Time limit" is left unset; the SNOPT in Drake's wheel
+# ignores it anyway): the solve is bounded by :class:`SolverBudget`'s iteration counts.
+_SNOPT_OPTIONS = {"Major optimality tolerance": 1e-2}
+# SNOPT's exit codes that end a solve at its work budget: its last iterate is returned
+# and may be used when the caller's own check accepts it.
+_BUDGET_SPENT = {31: "iteration limit", 32: "major iteration limit"}
+# What the safety stop's callback raises (Drake re-raises it from Solve as a RuntimeError
 # whose message holds this text).
-_DEADLINE_MESSAGE = "time budget spent (SNOPT stopped)"
+_SAFETY_STOP_MESSAGE = "wall-clock safety stop (SNOPT stopped)"
 
 
-class _DeadlinePassed(Exception):
+class _SafetyStop(Exception):
     pass
+
+
+@dataclasses.dataclass(frozen=True)
+class SolverBudget:
+    """How much work SNOPT may spend: counts of iterations, never seconds, so the same
+    program gives the same answer bit for bit on any machine under any load.
+
+    Attributes
+    ----------
+    major_iterations : int
+        SNOPT's ``Major iterations limit``.
+    minor_iterations : int
+        SNOPT's ``Minor iterations limit`` (per major iteration's QP subproblem).
+    iterations : int
+        SNOPT's ``Iterations limit`` (all minor iterations together).
+    safety_stop_s : float, optional
+        Wall time after which SNOPT is stopped regardless (None: never). Not a budget:
+        it only guards against a solver that hangs, far beyond any solve the iteration
+        limits allow; when it fires the answer is an error (``status``
+        ``wall-clock safety stop ...``, ``safety_stopped`` set), never a quiet plan.
+    """
+
+    major_iterations: int = 100
+    minor_iterations: int = 500
+    iterations: int = 20000
+    safety_stop_s: float | None = 600.0
 
 
 # Links standing on the table: never checked against it (as in joint_path.py).
@@ -83,19 +123,21 @@ _ON_TABLE_LINKS = ("base_link", "shoulder_link")
 
 @dataclasses.dataclass(frozen=True)
 class TrajectoryLimits:
-    """What the optimized motion keeps to.
+    """What the optimized motion keeps to. :meth:`of_timing` gives the limits of a
+    task's ``timing:`` block at its ``limit_fraction``, as the composed plan's timing
+    uses them (``robot/path_timing.py``); the defaults are those of the default block.
 
     Attributes
     ----------
-    velocity_fraction : float
-        Joint speeds within this fraction of the UR5e's limits (0.65, chosen when the
-        controller bounded its command at 0.7 of them; it now bounds it at 0.97, but 0.9,
-        as the composed plan's timing uses, makes SNOPT report the plain optimizer's
-        program on transferring infeasible, so 0.65 stays).
+    joint_speed_rad_s : float
+        Every joint's speed bound (0.9 pi).
     acceleration_rad_s2 : float
-        Joint accelerations (8 rad/s^2).
+        Every joint's acceleration bound (0.9 of 8 rad/s^2).
     tool_speed_m_s : float
-        E's speed (1.5 m/s), enforced on the samples by slowing the motion uniformly.
+        E's speed (0.9 of 1.5 m/s), enforced on the samples by slowing the motion
+        uniformly.
+    tool_acceleration_m_s2 : float, optional
+        E's acceleration magnitude (None: not limited), enforced like the tool speed.
     clearance_m : float
         Least signed distance of any robot or tool geometry to any box or the table at
         the clearance samples (0.02: the check demands 0.01 everywhere, and the path
@@ -107,24 +149,41 @@ class TrajectoryLimits:
         Bounds of the duration.
     """
 
-    velocity_fraction: float = 0.65
-    acceleration_rad_s2: float = 8.0
-    tool_speed_m_s: float = 1.5
+    joint_speed_rad_s: float = 0.9 * math.pi
+    acceleration_rad_s2: float = 0.9 * 8.0
+    tool_speed_m_s: float = 0.9 * 1.5
+    tool_acceleration_m_s2: float | None = None
     clearance_m: float = 0.02
     singularity_margin: float = 0.15
     min_duration_s: float = 0.2
     max_duration_s: float = 60.0
 
+    @classmethod
+    def of_timing(cls, timing: TimingLimits, **overrides) -> "TrajectoryLimits":
+        """The speed, acceleration and tool bounds of ``timing`` (a task's ``timing:``
+        block) at its ``limit_fraction``; ``overrides`` set the other fields."""
+        f = timing.limit_fraction
+        a = timing.tool_acceleration_m_s2
+        return cls(joint_speed_rad_s=f * timing.joint_speed_rad_s,
+                   acceleration_rad_s2=f * timing.joint_acceleration_rad_s2,
+                   tool_speed_m_s=f * timing.tool_speed_m_s,
+                   tool_acceleration_m_s2=None if a is None else f * a, **overrides)
+
 
 @dataclasses.dataclass(frozen=True)
 class PoseTarget:
     """E at ``X_WE`` at path fraction ``s``: position within ``position_tolerance_m``
-    along each axis of W, rotation within ``rotation_tolerance_rad``."""
+    along each axis of W, rotation within ``rotation_tolerance_rad``; with
+    ``pass_speed_m_s`` and ``q_nominal`` (6,), a configuration at E's pose, E passes
+    there at most that fast along each axis of W (linearized at ``q_nominal``: the
+    target pins the configuration within a millimetre of it)."""
 
     s: float
     X_WE: RigidTransform
     position_tolerance_m: float
     rotation_tolerance_rad: float
+    pass_speed_m_s: float | None = None
+    q_nominal: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -176,6 +235,13 @@ class OptimizationScene:
         self.plant_context = self.plant.GetMyMutableContextFromRoot(self.context)
         self.frame_E = self.plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)
 
+    def translational_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """d p_WE / d v at configuration ``q`` (6,): (3, 6)."""
+        self.plant.SetPositions(self.plant_context, self.model, np.asarray(q, dtype=float))
+        return self.plant.CalcJacobianTranslationalVelocity(
+            self.plant_context, JacobianWrtVariable.kV, self.frame_E, np.zeros(3), self.plant.world_frame(),
+            self.plant.world_frame())
+
     def X_WE(self, q: np.ndarray) -> RigidTransform:
         """E's pose at configuration ``q`` (6,)."""
         self.plant.SetPositions(self.plant_context, self.model, np.asarray(q, dtype=float))
@@ -189,32 +255,101 @@ class OptimizedTrajectory:
     Attributes
     ----------
     trajectory : BsplineTrajectory or None
-        ``q(t)``, t in [0, duration] (None when the solver failed).
+        ``q(t)``, t in [0, duration]: the solution, or when SNOPT spent its work budget
+        (``budget_spent``) its last iterate, for the caller to check; None otherwise.
     success : bool
+        SNOPT reported success.
     status : str
-        The solver's result (``SNOPT: ...``), for a failure's reason.
+        The solver's result (``SNOPT info 1``, ``... (SNOPT info 13)``), for a reason.
     solve_time_s : float
+        Wall time of the solve (a measurement only: nothing depends on it).
+    evaluations : int
+        Evaluations of the program SNOPT made (deterministic, like the answer).
+    budget_spent : bool
+        SNOPT stopped at an iteration limit of :class:`SolverBudget`.
+    safety_stopped : bool
+        The wall-clock safety stop ended the solve (an error; ``trajectory`` is None).
     """
 
     trajectory: BsplineTrajectory | None
     success: bool
     status: str
     solve_time_s: float
+    evaluations: int = 0
+    budget_spent: bool = False
+    safety_stopped: bool = False
 
     @property
     def duration(self) -> float:
         return float(self.trajectory.end_time()) if self.trajectory is not None else math.nan
 
 
-def fit_bspline(s: np.ndarray, q: np.ndarray, num_control_points: int, order: int = 4) -> BsplineTrajectory:
+def fit_bspline(s: np.ndarray, q: np.ndarray, num_control_points: int, order: int = 4, *,
+                rest_ends: bool = False, pins: Sequence[tuple[float, np.ndarray]] = ()) -> BsplineTrajectory:
     """The clamped uniform B-spline in ``s`` (on [0, 1]) with ``num_control_points``
     control points closest (least squares) to the samples ``q`` (m, 6) at ``s`` (m,),
-    its ends on the first and last sample."""
+    its ends on the first and last sample.
+
+    With ``rest_ends`` the first and last ``order - 1`` control points are the ends
+    themselves (zero velocity and acceleration there, as the program demands); each pin
+    ``(s_k, q_k)`` is met exactly (least squares under equality constraints), so the
+    guess starts on every critical configuration. A guess that breaks those constraints
+    starts SNOPT far from feasibility: fitted freely, a filling-and-pouring guess had a
+    path acceleration of 423 rad at its ends where the program demands 0, and missed
+    its critical configurations by up to 16 mm."""
     basis = BsplineBasis(order, num_control_points)
-    A = np.array([[basis.EvaluateBasisFunctionI(i, float(x)) for i in range(num_control_points)] for x in s])
-    control, *_ = np.linalg.lstsq(A, np.asarray(q, dtype=float), rcond=None)
-    control[0], control[-1] = q[0], q[-1]
+
+    def rows(x):
+        return np.array([[basis.EvaluateBasisFunctionI(i, float(v)) for i in range(num_control_points)] for v in x])
+
+    q = np.asarray(q, dtype=float)
+    fixed = order - 1 if rest_ends else 1
+    free = slice(fixed, num_control_points - fixed)
+    A = rows(s)
+    ends = np.zeros((num_control_points, q.shape[1]))
+    ends[:fixed], ends[num_control_points - fixed:] = q[0], q[-1]
+    target = q - A @ ends
+    A_free = A[:, free]
+    if pins:
+        B = rows([p for p, _ in pins])
+        d = np.array([x for _, x in pins]) - B @ ends
+        B_free = B[:, free]
+        k, m = A_free.shape[1], B_free.shape[0]
+        kkt = np.block([[A_free.T @ A_free, B_free.T], [B_free, np.zeros((m, m))]])
+        solution = np.linalg.lstsq(kkt, np.vstack([A_free.T @ target, d]), rcond=None)[0]
+        inner = solution[:k]
+    else:
+        inner = np.linalg.lstsq(A_free, target, rcond=None)[0]
+    control = ends.copy()
+    control[free] = inner
     return BsplineTrajectory(basis, [c.reshape(-1, 1) for c in control])
+
+
+def _add_pass_speed_bound(trajopt: KinematicTrajectoryOptimization, J: np.ndarray, s: float,
+                          speed_m_s: float) -> None:
+    """E's velocity ``J q'(s) / T`` at path fraction ``s`` within ``speed_m_s`` along each
+    axis, for a fixed Jacobian ``J`` (3, n): as ``|J q'(s)| <= speed T``, linear in the
+    control points and the duration ``T`` (``q'(s)`` is a fixed combination of the
+    control points). Drake's ``AddVelocityConstraintAtNormalizedTime`` would take a
+    general constraint on (q, v) and differentiate it through the whole spline at
+    every evaluation: measured on assembling, 33 ms of CPU per evaluation of the program
+    with two such constraints, against 5 ms without them."""
+    basis = trajopt.basis()
+    count = trajopt.num_control_points()
+    weights = np.array([
+        BsplineTrajectory(basis, [np.array([[1.0 if k == i else 0.0]]) for k in range(count)]).MakeDerivative()
+        .value(float(s))[0, 0] for i in range(count)])
+    control = np.asarray(trajopt.control_points())  # (n, count) of variables
+    n = control.shape[0]
+    variables = [control[j, i] for i in range(count) for j in range(n)] + [trajopt.duration()]
+    A = np.zeros((3, count * n + 1))
+    for i in range(count):
+        A[:, i * n:(i + 1) * n] = weights[i] * J
+    upper, lower = A.copy(), A.copy()
+    upper[:, -1], lower[:, -1] = -speed_m_s, speed_m_s
+    prog = trajopt.get_mutable_prog()
+    prog.AddLinearConstraint(upper, np.full(3, -np.inf), np.zeros(3), variables)
+    prog.AddLinearConstraint(lower, np.zeros(3), np.full(3, np.inf), variables)
 
 
 def _singularity_free_interval(values: np.ndarray, margin: float) -> tuple[float, float] | None:
@@ -239,8 +374,7 @@ def optimize_joint_trajectory(
     bounds: Sequence[PoseBound] = (),
     clearance_samples: int = 40,
     limits: TrajectoryLimits = TrajectoryLimits(),
-    max_iterations: int | None = None,
-    deadline_s: float | None = None,
+    budget: SolverBudget = SolverBudget(),
 ) -> OptimizedTrajectory:
     """Solves the program of the module docstring from ``guess`` (a B-spline in path
     fraction, on [0, 1], its ends the fixed start and goal configurations).
@@ -255,14 +389,13 @@ def optimize_joint_trajectory(
     clearance_samples : int
         Path fractions (evenly spread, ends included) the clearance is constrained at.
     limits : TrajectoryLimits
-    max_iterations : int, optional
-        SNOPT's major iteration limit (default: SNOPT's).
-    deadline_s : float, optional
-        A ``time.perf_counter()`` reading: SNOPT is stopped at its first evaluation of
-        the program after it (the answer is then a failure, status ``time budget
-        spent``). The SNOPT shipped with Drake ignores its own ``Time limit`` option, so
-        the stop is an exception raised in a visualization callback, which Drake turns
-        into SNOPT's "terminated during function evaluation".
+    budget : SolverBudget
+        SNOPT's iteration limits (and the wall-clock safety stop). SNOPT runs single
+        threaded and writes no print or summary file, so the answer depends on the
+        program and these counts only. The SNOPT shipped with Drake ignores its own
+        ``Time limit`` option, so the safety stop is an exception raised in a
+        visualization callback (called at each evaluation of the program), which Drake
+        turns into SNOPT's "terminated during function evaluation".
     """
     plant, context, frame_E = scene.plant, scene.plant_context, scene.frame_E
     world = plant.world_frame()
@@ -278,7 +411,7 @@ def optimize_joint_trajectory(
             lower[j], upper[j] = max(lower[j], interval[0]), min(upper[j], interval[1])
     trajopt.AddPositionBounds(lower, upper)
     control = np.clip(control, lower[:, None], upper[:, None])
-    speed = limits.velocity_fraction * plant.GetVelocityUpperLimits()
+    speed = np.minimum(limits.joint_speed_rad_s, plant.GetVelocityUpperLimits())
     trajopt.AddVelocityBounds(-speed, speed)
     trajopt.AddAccelerationBounds(np.full(n, -limits.acceleration_rad_s2), np.full(n, limits.acceleration_rad_s2))
     q_start, q_goal = control[:, 0], control[:, -1]
@@ -298,6 +431,9 @@ def optimize_joint_trajectory(
         trajopt.AddPathPositionConstraint(
             OrientationConstraint(plant, world, target.X_WE.rotation(), frame_E, RotationMatrix(),
                                   target.rotation_tolerance_rad, context), target.s)
+        if target.pass_speed_m_s is not None and target.q_nominal is not None:
+            _add_pass_speed_bound(trajopt, scene.translational_jacobian(target.q_nominal), target.s,
+                                  target.pass_speed_m_s)
     for bound in bounds:
         if bound.p_W is not None:
             trajopt.AddPathPositionConstraint(
@@ -319,28 +455,37 @@ def optimize_joint_trajectory(
     options = SolverOptions()
     for name, value in _SNOPT_OPTIONS.items():
         options.SetOption(SnoptSolver.id(), name, value)
-    if max_iterations is not None:
-        options.SetOption(SnoptSolver.id(), "Major iterations limit", int(max_iterations))
-    if deadline_s is not None:
-        def stop_at_deadline(_):
-            if time.perf_counter() > deadline_s:
-                raise _DeadlinePassed(_DEADLINE_MESSAGE)
-
-        prog.AddVisualizationCallback(stop_at_deadline, prog.decision_variables())
-    solver = SnoptSolver()
+    options.SetOption(SnoptSolver.id(), "Major iterations limit", int(budget.major_iterations))
+    options.SetOption(SnoptSolver.id(), "Minor iterations limit", int(budget.minor_iterations))
+    options.SetOption(SnoptSolver.id(), "Iterations limit", int(budget.iterations))
+    evaluations = [0]
     start = time.perf_counter()
+    stop_at = None if budget.safety_stop_s is None else start + budget.safety_stop_s
+
+    def count(_):
+        evaluations[0] += 1
+        if stop_at is not None and time.perf_counter() > stop_at:
+            raise _SafetyStop(_SAFETY_STOP_MESSAGE)
+
+    prog.AddVisualizationCallback(count, prog.decision_variables())
     try:
-        result = solver.Solve(prog, None, options)
+        result = SnoptSolver().Solve(prog, None, options)
     except RuntimeError as error:
-        if _DEADLINE_MESSAGE not in str(error):
+        if _SAFETY_STOP_MESSAGE not in str(error):
             raise
-        return OptimizedTrajectory(None, False, _DEADLINE_MESSAGE, time.perf_counter() - start)
+        return OptimizedTrajectory(None, False, f"{_SAFETY_STOP_MESSAGE} after {budget.safety_stop_s:g} s",
+                                   time.perf_counter() - start, evaluations[0], safety_stopped=True)
     elapsed = time.perf_counter() - start
-    details = result.get_solver_details()
-    status = f"SNOPT info {details.info}" if hasattr(details, "info") else str(result.get_solution_result())
-    if not result.is_success():
-        return OptimizedTrajectory(None, False, f"{result.get_solution_result()} ({status})", elapsed)
-    return OptimizedTrajectory(trajopt.ReconstructTrajectory(result), True, status, elapsed)
+    info = int(result.get_solver_details().info)
+    if result.is_success():
+        return OptimizedTrajectory(trajopt.ReconstructTrajectory(result), True, f"SNOPT info {info}", elapsed,
+                                   evaluations[0])
+    status = f"{result.get_solution_result()} (SNOPT info {info})"
+    if info in _BUDGET_SPENT:
+        return OptimizedTrajectory(trajopt.ReconstructTrajectory(result), False,
+                                   f"{_BUDGET_SPENT[info]} reached (SNOPT info {info})", elapsed, evaluations[0],
+                                   budget_spent=True)
+    return OptimizedTrajectory(None, False, status, elapsed, evaluations[0])
 
 
 def _tool_speed_and_acceleration(scene: OptimizationScene, trajectory: BsplineTrajectory, tau: float,
@@ -384,6 +529,7 @@ def sample_trajectory(
     *,
     time_step: float,
     tool_speed_m_s: float,
+    tool_acceleration_m_s2: float | None = None,
     pass_speed_m_s: float | None = None,
     pass_acceleration_m_s2: float | None = None,
     slow_window_s: float = 0.15,
@@ -398,8 +544,9 @@ def sample_trajectory(
     the speed at a critical configuration is what its error there grows with); each
     stretch between consecutive fractions is stretched to a whole number of steps; then
     the whole motion is slowed uniformly until E's speed (finite differences of the
-    samples) is within ``tool_speed_m_s`` (uniform slowing keeps every path constraint
-    and lowers every speed and acceleration).
+    samples) is within ``tool_speed_m_s`` and, when given, the magnitude of its
+    acceleration (second differences) within ``tool_acceleration_m_s2`` (uniform
+    slowing keeps every path constraint and lowers every speed and acceleration).
 
     Returns
     -------
@@ -428,7 +575,11 @@ def sample_trajectory(
         X = [scene.X_WE(x) for x in q]
         p = np.array([x.translation() for x in X])
         peak = float(np.max(np.linalg.norm(np.diff(p, axis=0), axis=1)) / time_step) if len(p) > 1 else 0.0
-        if peak <= tool_speed_m_s:
+        slow = peak / tool_speed_m_s
+        if tool_acceleration_m_s2 is not None and len(p) > 2:
+            peak_acceleration = float(np.max(np.linalg.norm(np.diff(p, 2, axis=0), axis=1)) / time_step ** 2)
+            slow = max(slow, math.sqrt(peak_acceleration / tool_acceleration_m_s2))
+        if slow <= 1.0:
             break
-        scale *= 1.02 * peak / tool_speed_m_s
+        scale *= 1.02 * slow
     return t, q, X, [int(i) for i in indices], sample_tau / T
