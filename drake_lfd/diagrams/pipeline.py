@@ -10,6 +10,10 @@ default, compiled controller (``controller.method: compiled``)::
     Station --ur5e.position_measured--> JointTrajectoryController
     Station --ur5e.state--> joint logger; ShellMonitor measures the logged samples
 
+The planner system then plans at initialization only (no periodic check: the compiled
+controller tracks the joint path set before the run, and a run whose task changes is
+run on a sibling pipeline with the task-space controller, ``with_controller``).
+
 With the Python task-space controller (``drake`` or ``pseudo_inverse``, the paper's
 baseline)::
 

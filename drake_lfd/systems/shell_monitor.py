@@ -19,7 +19,10 @@ log (given a kinematic scene of the same work cell: ``measure_log``, called by t
 closed-loop runner when each critical configuration is due and at the end of the run),
 with no event of its own: a Python event every 10 ms and its pairs loop cost about as
 much as the plant's step (a run's step 347 us against 191 us with the log measured, on a
-loaded machine). The records are the same, to the bit (``tests/test_closed_loop_compiled.py``
+loaded machine). A batch's joint travel and motion bounds are computed at once, and the
+scene's arm is posed only at the samples where some pair's bound has run out (on the
+transferring task about two samples in three, 2.5 pairs each): 13 ms of CPU per trial
+against 27 ms visiting every sample. The records are the same, to the bit (``tests/test_closed_loop_compiled.py``
 compares them on the transferring task; 12 pick-and-place tasks, filling and pouring and
 assembling agreed too). With ``stop_on_penetration`` the monitor samples itself, to end
 the run at the penetration's sample.
