@@ -73,18 +73,20 @@ def _records(task, features, trials, **monitor):
     for i in range(trials):
         outcome = runner.run(trial=i + 1, seed=i)
         records.append(None if outcome.run is None else outcome.run.clearances)
-    return records
+    return records, runner._runner.pipeline.monitor.num_pair_queries
 
 
 @pytest.mark.slow
 def test_the_batched_monitor_keeps_every_record_of_the_per_sample_monitor():
     task = load_task(scenarios_directory() / "transferring.yaml")
     features = library_features(Library.open("paper5"))
-    per_sample = _records(task, features, 3, from_log=False)
-    batched = _records(task, features, 3, from_log=True)
+    per_sample, per_sample_queries = _records(task, features, 3, from_log=False)
+    batched, batched_queries = _records(task, features, 3, from_log=True)
     assert all(r is not None for r in per_sample)
     # The same minimum, geometry and time of every box, to the bit.
     assert batched == per_sample
+    # The batch skips the same pairs (it poses the arm only where some pair is due).
+    assert batched_queries == per_sample_queries > 0
 
 
 @pytest.mark.slow
