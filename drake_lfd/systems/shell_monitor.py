@@ -432,7 +432,7 @@ def _motion_bounds(radii: Sequence[Sequence[float]], bounded: Sequence[bool], tr
     """:func:`_motion_bound` of every robot geometry (``radii`` (m, J), inf where not
     ``bounded``) at every sample's joint travel ``travel`` (K, J): (K, m), the same
     floating-point operations in the same order."""
-    products = travel[:, None, :] * np.asarray(radii, dtype=float)[None, :, :]  # (K, m, J)
+    products = travel[:, None, :] * np.asarray(radii, dtype=float).reshape(len(radii), travel.shape[1])  # (K, m, J)
     moved = np.zeros(products.shape[:2])
     for j in range(products.shape[2]):
         moved += products[:, :, j]
