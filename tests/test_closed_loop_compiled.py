@@ -17,6 +17,7 @@ from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.io.task_files import load_task
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryController, joint_trajectory_of_plan
+from drake_lfd.systems.shell_monitor import _motion_bound, _motion_bounds
 
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -math.pi / 2, 0.0])
 Q_A = Q_HOME + np.array([0.25, 0.1, -0.15, 0.05, 0.1, 0.2])
@@ -73,18 +74,20 @@ def _records(task, features, trials, **monitor):
     for i in range(trials):
         outcome = runner.run(trial=i + 1, seed=i)
         records.append(None if outcome.run is None else outcome.run.clearances)
-    return records
+    return records, runner._runner.pipeline.monitor.num_pair_queries
 
 
 @pytest.mark.slow
 def test_the_batched_monitor_keeps_every_record_of_the_per_sample_monitor():
     task = load_task(scenarios_directory() / "transferring.yaml")
     features = library_features(Library.open("paper5"))
-    per_sample = _records(task, features, 3, from_log=False)
-    batched = _records(task, features, 3, from_log=True)
+    per_sample, per_sample_queries = _records(task, features, 3, from_log=False)
+    batched, batched_queries = _records(task, features, 3, from_log=True)
     assert all(r is not None for r in per_sample)
     # The same minimum, geometry and time of every box, to the bit.
     assert batched == per_sample
+    # The batch skips the same pairs (it poses the arm only where some pair is due).
+    assert batched_queries == per_sample_queries > 0
 
 
 @pytest.mark.slow
@@ -96,3 +99,17 @@ def test_runs_with_a_penetration_stop_keep_sampling_each_period():
     assert not pipeline.monitor.measures_log
     _, result = ClosedLoopRunner(pipeline).run(q_initial=Q_HOME)
     assert not result.stopped_early and math.isfinite(result.min_shell_distance_m)
+
+
+def test_batched_motion_bounds_are_the_per_sample_bounds_to_the_bit_and_nondecreasing():
+    rng = np.random.default_rng(3)
+    travel = np.cumsum(rng.random((200, 6)) * 1e-3, axis=0)  # (K, J): a joint travel grows
+    radii = (rng.random((4, 6)) * 0.8).tolist()
+    bounds = _motion_bounds(radii, [True, True, False, True], travel)
+    assert bounds.shape == (200, 4)
+    for k in range(0, 200, 17):
+        for i in (0, 1, 3):
+            assert bounds[k, i] == _motion_bound(radii[i], travel[k].tolist())
+    assert np.all(np.isinf(bounds[:, 2]))
+    # The batch finds each pair's next due sample by bisection: the bound never decreases.
+    assert np.all(np.diff(bounds[:, [0, 1, 3]], axis=0) >= 0.0)

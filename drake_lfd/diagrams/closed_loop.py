@@ -363,10 +363,10 @@ class ClosedLoopRunner:
             self.meshcat.SetCameraPose(camera_in_world=target + [0.9, -1.0, 0.55], target_in_world=target)
             visualizer.DeleteRecording()
             visualizer.StartRecording(set_transforms_while_recording=False)
+        simulator.Initialize()  # setup, as the bare station's in bench_pipeline.py
         setup_wall_time_s = time.perf_counter() - setup_start
 
         wall_start, cpu_start = time.perf_counter(), time.process_time()
-        simulator.Initialize()
         plant, model = station.plant, station.model
         plant_context = plant.GetMyContextFromRoot(context)
         stopped_early, stop_reason = False, ""

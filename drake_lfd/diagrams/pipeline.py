@@ -10,6 +10,10 @@ default, compiled controller (``controller.method: compiled``)::
     Station --ur5e.position_measured--> JointTrajectoryController
     Station --ur5e.state--> joint logger; ShellMonitor measures the logged samples
 
+The planner system then plans at initialization only (no periodic check: the compiled
+controller tracks the joint path set before the run, and a run whose task changes is
+run on a sibling pipeline with the task-space controller, ``with_controller``).
+
 With the Python task-space controller (``drake`` or ``pseudo_inverse``, the paper's
 baseline)::
 
@@ -204,6 +208,7 @@ class Pipeline(Diagram):
         station = builder.AddNamedSystem("station", Station(
             workcell=workcell, meshcat=meshcat, config=config.station))
         self.library = self.planner = None
+        self.compiled = config.controller.method == COMPILED_METHOD
         if plan is None:
             self.library = builder.AddNamedSystem("feature_library", FeatureLibrarySystem(
                 features=features, X_tool0_E=X_tool0_E, accept_demonstrations=accept_demonstrations,
@@ -211,7 +216,10 @@ class Pipeline(Diagram):
             self.planner = builder.AddNamedSystem("planner", PlannerSystem(
                 planner=planner, policy=policy, start_time_s=config.settle_s, floor_z=floor_z,
                 checker=joint_path_checker(workcell, config) if joint_check else None,
-                check_period=config.planner.check_period, cost=cost, refine=refine))
+                # The compiled controller tracks the joint path set before a run (a run
+                # with task changes goes to a task-space sibling, ``with_controller``):
+                # nothing to check for during it.
+                check_period=None if self.compiled else config.planner.check_period, cost=cost, refine=refine))
             plan_port = self.planner.plan_output_port
         else:
             constant = builder.AddNamedSystem("given_plan", ConstantValueSource(
@@ -222,7 +230,6 @@ class Pipeline(Diagram):
         #: The controller's law on the controller plant (the compiled controller's limits,
         #: and following a plan that has no joint path).
         self.law = law_for_plant(controller_plant, station.controller_model, frame_E, config.controller)
-        self.compiled = config.controller.method == COMPILED_METHOD
         if self.compiled:
             # The plan reaches the compiled controller's own TrajectorySource as a joint
             # path, set by the runner; no Python source is evaluated (or stepped) at run time.

@@ -61,8 +61,10 @@ class PlannerSystem(LeafSystem):
     checker : JointPathChecker, optional
         The plan-time joint-space check of the scene (:mod:`drake_lfd.robot.joint_path`):
         with it, only executable compositions are planned.
-    check_period : float
-        How often the inputs are compared with the plan's, s.
+    check_period : float or None
+        How often the inputs are compared with the plan's, s; None: only at
+        initialization (a Diagram whose plan cannot change during a run, such as the
+        compiled closed loop's, then pays no periodic Python event).
     cost : {"paper", "fidelity"}
         The action cost the planner minimises (``plan_task``'s ``cost``: Eq. 31, or with
         the shape-fidelity terms of ``core/fidelity.py``).
@@ -80,7 +82,7 @@ class PlannerSystem(LeafSystem):
         start_time_s: float = 0.0,
         floor_z: float | None = None,
         checker: JointPathChecker | None = None,
-        check_period: float = 0.05,
+        check_period: float | None = 0.05,
         cost: str = "paper",
         refine: bool = False,
     ):
@@ -104,7 +106,8 @@ class PlannerSystem(LeafSystem):
         self._state_index = self.DeclareAbstractState(AbstractValue.Make(object()))
         self.plan_output_port = self.DeclareStateOutputPort("plan", self._state_index)
         self.DeclareInitializationUnrestrictedUpdateEvent(self._update)
-        self.DeclarePeriodicUnrestrictedUpdateEvent(check_period, 0.0, self._update)
+        if check_period is not None:
+            self.DeclarePeriodicUnrestrictedUpdateEvent(check_period, 0.0, self._update)
 
     @staticmethod
     def AddToBuilder(*, builder: DiagramBuilder, library_output_port: OutputPort,

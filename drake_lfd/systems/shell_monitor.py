@@ -19,7 +19,10 @@ log (given a kinematic scene of the same work cell: ``measure_log``, called by t
 closed-loop runner when each critical configuration is due and at the end of the run),
 with no event of its own: a Python event every 10 ms and its pairs loop cost about as
 much as the plant's step (a run's step 347 us against 191 us with the log measured, on a
-loaded machine). The records are the same, to the bit (``tests/test_closed_loop_compiled.py``
+loaded machine). A batch's joint travel and motion bounds are computed at once, and the
+scene's arm is posed only at the samples where some pair's bound has run out (on the
+transferring task about two samples in three, 2.5 pairs each): 13 ms of CPU per trial
+against 27 ms visiting every sample. The records are the same, to the bit (``tests/test_closed_loop_compiled.py``
 compares them on the transferring task; 12 pick-and-place tasks, filling and pouring and
 assembling agreed too). With ``stop_on_penetration`` the monitor samples itself, to end
 the run at the penetration's sample.
@@ -29,6 +32,7 @@ Not for: registering the boxes (``scene.py``) or judging a run (``closed_loop.py
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -255,7 +259,7 @@ class ShellMonitor(LeafSystem):
                 travel = [t + abs(a - b) for t, a, b in zip(travel, q, q_previous)]
             state[3 * n:3 * n + 2 * num_joints] = q + travel
             # How far each robot geometry may have moved since the start, as a bound.
-            moved = [sum(r * t for r, t in zip(radii, travel)) if bounded else math.inf
+            moved = [_motion_bound(radii, travel) if bounded else math.inf
                      for radii, bounded in zip(self._radii, self._bounded)]
         best = [math.inf] * n  # per box: the smallest distance measured now, and by whom
         best_index = [-1] * n
@@ -300,20 +304,71 @@ class ShellMonitor(LeafSystem):
         context = self.GetMyMutableContextFromRoot(root_context)
         if not self._prepared:
             self._prepare(self.query_object_input_port.Eval(context))
-        state = context.get_discrete_state(self._state_index).value().tolist()
+        state = context.get_discrete_state(self._state_index).value().copy()
         done = int(state[-1])
         end = int(np.searchsorted(t, context.get_time(), side="left"))
         if end <= done:
             return
         signed_distance = self._scene.scene_graph.get_query_output_port().Eval(
             self._scene_graph_context).ComputeSignedDistancePairClosestPoints
+        self._measure_batch(state, np.asarray(t[done:end], dtype=float), np.asarray(q[done:end], dtype=float),
+                            signed_distance)
+        state[-1] = float(end)
+        context.SetDiscreteState(self._state_index, state)
+
+    def _measure_batch(self, state: np.ndarray, t: np.ndarray, q: np.ndarray, signed_distance) -> None:
+        """Updates ``state`` as :meth:`_sample` would for each of the samples ``q`` (K, J)
+        at times ``t`` (K,) in turn, with the same arithmetic in the same order.
+
+        The joints' travel and each geometry's motion bound are computed for the whole
+        batch at once (cumulative sums, nondecreasing), so the samples at which every
+        pair is pruned are found without visiting them: the scene's arm is posed, and
+        pairs queried, only at the samples where some pair's bound has run out.
+        """
+        n, num_joints, m = len(self._box_ids), self._num_joints, len(self._scene_robot_ids)
+        offset = 3 * n + 2 * num_joints
+        q_previous = state[3 * n:3 * n + num_joints]
+        steps = np.abs(np.diff(q, axis=0, prepend=q_previous[None, :] if q_previous[0] == q_previous[0]
+                               else q[:1]))
+        # travel_k = travel_(k-1) + |q_k - q_(k-1)|, summed in sample order (add.accumulate).
+        travel = np.cumsum(np.vstack([state[3 * n + num_joints:offset], steps]), axis=0)[1:]
+        moved = _motion_bounds(self._radii, self._bounded, travel)  # (K, m)
+        state[3 * n:offset] = np.concatenate([q[-1], travel[-1]])
+        # Plain Python from here (a few numbers per sample, as in :meth:`_sample`). Each
+        # geometry's bound is nondecreasing along the batch (rounding is monotone), so the
+        # first sample at which a pair is due (not ``moved < wake``) is a binary search.
+        moved_by_robot = moved.T.tolist()  # m lists of K
+        values = state.tolist()
+        records, wake = values[:n], values[offset:offset + self._num_pairs]
+        due_at = [bisect.bisect_left(moved_by_robot[pair % m], wake[pair]) for pair in range(self._num_pairs)]
         plant, plant_context = self._scene.plant, self._scene_plant_context
         robot_ids, box_ids = self._scene_robot_ids, self._scene_box_ids
-        for k in range(done, end):
+        num_samples = len(t)
+        while (k := min(due_at, default=num_samples)) < num_samples:
             plant.SetPositions(plant_context, q[k])
-            self._sample(state, q[k].tolist(), float(t[k]), signed_distance, robot_ids, box_ids)
-        state[-1] = float(end)
-        context.SetDiscreteState(self._state_index, np.array(state))
+            best = [math.inf] * n
+            best_index = [-1] * n
+            measured = []
+            for pair, due in enumerate(due_at):
+                if due != k:
+                    continue
+                j, i = divmod(pair, m)
+                distance = signed_distance(robot_ids[i], box_ids[j]).distance
+                measured.append((pair, distance))
+                if distance < best[j]:
+                    best[j], best_index[j] = distance, i
+            self.num_pair_queries += len(measured)
+            for j in range(n):
+                if best[j] < records[j]:
+                    records[j] = values[j] = best[j]
+                    values[n + j], values[2 * n + j] = best_index[j], float(t[k])
+            for pair, distance in measured:
+                j, i = divmod(pair, m)
+                bound = moved_by_robot[i]
+                wake[pair] = bound[k] + distance - max(records[j], 0.0)
+                due_at[pair] = bisect.bisect_left(bound, wake[pair], k + 1)
+        state[:3 * n] = values[:3 * n]
+        state[offset:offset + self._num_pairs] = wake
 
     def _prepare(self, query_object):
         """Names read once from SceneGraph (for geometries not named by the caller), and
@@ -363,3 +418,23 @@ class ShellMonitor(LeafSystem):
                 )
             )
         return records
+
+
+def _motion_bound(radii: Sequence[float], travel: Sequence[float]) -> float:
+    """``sum_j r_j T_j``, summed in joint order (as :func:`_motion_bounds` does)."""
+    moved = 0.0
+    for r, t in zip(radii, travel):
+        moved += r * t
+    return moved
+
+
+def _motion_bounds(radii: Sequence[Sequence[float]], bounded: Sequence[bool], travel: np.ndarray) -> np.ndarray:
+    """:func:`_motion_bound` of every robot geometry (``radii`` (m, J), inf where not
+    ``bounded``) at every sample's joint travel ``travel`` (K, J): (K, m), the same
+    floating-point operations in the same order."""
+    products = travel[:, None, :] * np.asarray(radii, dtype=float).reshape(len(radii), travel.shape[1])  # (K, m, J)
+    moved = np.zeros(products.shape[:2])
+    for j in range(products.shape[2]):
+        moved += products[:, :, j]
+    moved[:, ~np.asarray(bounded, dtype=bool)] = np.inf
+    return moved
