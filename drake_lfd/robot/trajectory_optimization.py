@@ -17,6 +17,9 @@ free duration ``T``; docs/method.rst, Refinement by trajectory optimization):
   points and the duration), pose bounds along the path (:class:`PoseBound`: E's distance
   to a point and its angle to a rotation, at a fixed path fraction: the task's
   orientation constraints and the demonstration tube);
+- the shoulder singularity: the wrist centre at least ``shoulder_margin_m`` from the
+  shoulder axis, on the side both ends are on, at the clearance's path fractions (a
+  one-sided ``PositionConstraint`` of the wrist centre in the shoulder link's frame);
 - clearance: ``MinimumDistanceLowerBoundConstraint`` at evenly spread path fractions on
   :class:`OptimizationScene`, the work cell's geometry with every robot and tool
   geometry checked against every obstacle, shell and the table (the base and shoulder
@@ -58,6 +61,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.trajectories import BsplineTrajectory
 
 from drake_lfd.core.timing import TimingLimits
+from drake_lfd.robot.joint_path import shoulder_singularity_distance
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, add_ur5e
 from drake_lfd.robot.scene import add_scene
 from drake_lfd.robot.workcell import Workcell
@@ -145,6 +149,10 @@ class TrajectoryLimits:
     singularity_margin : float
         Least ``|sin q3|`` and ``|sin q5|`` (0.15; the check demands 0.06, and the
         controller's path near a singularity strays from the optimized joints).
+    shoulder_margin_m : float
+        Least distance of the wrist centre from the shoulder axis at the clearance
+        samples, m (0.07: the check demands 0.05, and the path between samples may come
+        closer).
     min_duration_s, max_duration_s : float
         Bounds of the duration.
     """
@@ -155,6 +163,7 @@ class TrajectoryLimits:
     tool_acceleration_m_s2: float | None = None
     clearance_m: float = 0.02
     singularity_margin: float = 0.15
+    shoulder_margin_m: float = 0.07
     min_duration_s: float = 0.2
     max_duration_s: float = 60.0
 
@@ -352,6 +361,40 @@ def _add_pass_speed_bound(trajopt: KinematicTrajectoryOptimization, J: np.ndarra
     prog.AddLinearConstraint(lower, np.zeros(3), np.full(3, np.inf), variables)
 
 
+# The wrist centre's signed distance from the shoulder axis
+# (``joint_path.shoulder_singularity_distance``) is the x coordinate, in the shoulder
+# link's frame, of the wrist-2 link's origin (tests/test_trajectory_optimization.py
+# checks this on random configurations).
+SHOULDER_FRAME_NAME, WRIST_CENTRE_FRAME_NAME = "shoulder_link", "wrist_2_link"
+
+
+def _add_shoulder_margin(trajopt: KinematicTrajectoryOptimization, scene: OptimizationScene,
+                         q_ends: Sequence[np.ndarray], fractions: np.ndarray, margin_m: float) -> bool:
+    """The wrist centre at least ``margin_m`` from the shoulder axis at each path
+    fraction of ``fractions``, on the side the ends ``q_ends`` (two (6,) configurations)
+    lie on. "Outside a cylinder" is not convex, but on a fixed side it is a half space
+    in the shoulder link's frame (which turns with q1): one Drake ``PositionConstraint``
+    with a one-sided bound on x, evaluated in C++ like the other path constraints. The
+    margin is lowered to the ends' own distance where that is less (the ends are fixed).
+    False (nothing added) when the ends lie on opposite sides or there is no fraction."""
+    ends = [shoulder_singularity_distance(q) for q in q_ends]
+    if ends[0] * ends[1] <= 0.0 or not len(fractions):
+        return False
+    margin_m = min(margin_m, abs(ends[0]), abs(ends[1]))
+    lower, upper = np.full(3, -np.inf), np.full(3, np.inf)
+    if ends[0] > 0:
+        lower[0] = margin_m
+    else:
+        upper[0] = -margin_m
+    plant = scene.plant
+    constraint = PositionConstraint(plant, plant.GetFrameByName(SHOULDER_FRAME_NAME, scene.model), lower, upper,
+                                    plant.GetFrameByName(WRIST_CENTRE_FRAME_NAME, scene.model), np.zeros(3),
+                                    scene.plant_context)
+    for s in fractions:
+        trajopt.AddPathPositionConstraint(constraint, float(s))
+    return True
+
+
 def _singularity_free_interval(values: np.ndarray, margin: float) -> tuple[float, float] | None:
     """The interval ``[k pi + asin(margin), (k + 1) pi - asin(margin)]`` holding every
     value, or None when the values cross a singularity."""
@@ -443,9 +486,13 @@ def optimize_joint_trajectory(
             trajopt.AddPathPositionConstraint(
                 OrientationConstraint(plant, world, bound.R_WE, frame_E, RotationMatrix(), bound.angle_rad, context),
                 bound.s)
+    samples = np.linspace(0.0, 1.0, max(clearance_samples, 2))
+    if limits.shoulder_margin_m > 0.0:
+        _add_shoulder_margin(trajopt, scene, (q_start, q_goal), samples[1:-1],  # the ends are fixed
+                             limits.shoulder_margin_m)
     if scene.has_boxes and clearance_samples > 0:
         clearance = MinimumDistanceLowerBoundConstraint(plant, limits.clearance_m, context, None, 0.05)
-        for s in np.linspace(0.0, 1.0, clearance_samples):
+        for s in samples:
             trajopt.AddPathPositionConstraint(clearance, float(s))
     prog = trajopt.get_mutable_prog()
     # The guess in time: its duration is the initial guess of T.
