@@ -12,7 +12,8 @@ free duration ``T``; docs/method.rst, Refinement by trajectory optimization):
   :class:`TrajectoryLimits`, by default a task's ``timing:`` limits at its
   ``limit_fraction`` (:meth:`TrajectoryLimits.of_timing`);
 - zero path velocity and acceleration at both ends (the arm starts and ends at rest);
-- pose targets (:class:`PoseTarget`: a position box and an orientation cone of E at a
+- pose targets (:class:`PoseTarget`: a position box of E and, for its rotation, position
+  boxes of two points 1 m out on its axes (well scaled, unlike a trace bound) at a
   fixed path fraction, and optionally a bound on E's speed there, linear in the control
   points and the duration), pose bounds along the path (:class:`PoseBound`: E's distance
   to a point and its angle to a rotation, at a fixed path fraction: the task's
@@ -189,7 +190,8 @@ class TrajectoryLimits:
 @dataclasses.dataclass(frozen=True)
 class PoseTarget:
     """E at ``X_WE`` at path fraction ``s``: position within ``position_tolerance_m``
-    along each axis of W, rotation within ``rotation_tolerance_rad``; with
+    along each axis of W, rotation within ``rotation_tolerance_rad`` (at worst; see
+    ``_add_rotation_target``); with
     ``pass_speed_m_s`` and ``q_nominal`` (6,), a configuration at E's pose, E passes
     there at most that fast along each axis of W (linearized at ``q_nominal``: the
     target pins the configuration within a millimetre of it)."""
