@@ -12,11 +12,15 @@ free duration ``T``; docs/method.rst, Refinement by trajectory optimization):
   :class:`TrajectoryLimits`, by default a task's ``timing:`` limits at its
   ``limit_fraction`` (:meth:`TrajectoryLimits.of_timing`);
 - zero path velocity and acceleration at both ends (the arm starts and ends at rest);
-- pose targets (:class:`PoseTarget`: a position box and an orientation cone of E at a
+- pose targets (:class:`PoseTarget`: a position box of E and, for its rotation, position
+  boxes of two points 1 m out on its axes (well scaled, unlike a trace bound) at a
   fixed path fraction, and optionally a bound on E's speed there, linear in the control
   points and the duration), pose bounds along the path (:class:`PoseBound`: E's distance
   to a point and its angle to a rotation, at a fixed path fraction: the task's
   orientation constraints and the demonstration tube);
+- the shoulder singularity: the wrist centre at least ``shoulder_margin_m`` from the
+  shoulder axis, on the side both ends are on, at the clearance's path fractions (a
+  one-sided ``PositionConstraint`` of the wrist centre in the shoulder link's frame);
 - clearance: ``MinimumDistanceLowerBoundConstraint`` at evenly spread path fractions on
   :class:`OptimizationScene`, the work cell's geometry with every robot and tool
   geometry checked against every obstacle, shell and the table (the base and shoulder
@@ -58,6 +62,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.trajectories import BsplineTrajectory
 
 from drake_lfd.core.timing import TimingLimits
+from drake_lfd.robot.joint_path import shoulder_singularity_distance
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, add_ur5e
 from drake_lfd.robot.scene import add_scene
 from drake_lfd.robot.workcell import Workcell
@@ -82,6 +87,13 @@ _SNOPT_OPTIONS = {"Major optimality tolerance": 1e-2}
 # SNOPT's exit codes that end a solve at its work budget: its last iterate is returned
 # and may be used when the caller's own check accepts it.
 _BUDGET_SPENT = {31: "iteration limit", 32: "major iteration limit"}
+# SNOPT's "infeasible" exit (info 13: nonlinear infeasibilities minimized): its last
+# iterate is returned for the caller to check when no constraint is violated by more than
+# _NEARLY_FEASIBLE (in the constraints' own units: metres, radians, rad/s). Measured on
+# filling and pouring (exact planner, seed 4): SNOPT gave up with one target off by
+# 4.6e-5, far inside the check's margins, while its second round ended 0.18 off.
+_INFEASIBLE = 13
+_NEARLY_FEASIBLE = 1e-4
 # What the safety stop's callback raises (Drake re-raises it from Solve as a RuntimeError
 # whose message holds this text).
 _SAFETY_STOP_MESSAGE = "wall-clock safety stop (SNOPT stopped)"
@@ -145,6 +157,10 @@ class TrajectoryLimits:
     singularity_margin : float
         Least ``|sin q3|`` and ``|sin q5|`` (0.15; the check demands 0.06, and the
         controller's path near a singularity strays from the optimized joints).
+    shoulder_margin_m : float
+        Least distance of the wrist centre from the shoulder axis at the clearance
+        samples, m (0.07: the check demands 0.05, and the path between samples may come
+        closer).
     min_duration_s, max_duration_s : float
         Bounds of the duration.
     """
@@ -155,6 +171,7 @@ class TrajectoryLimits:
     tool_acceleration_m_s2: float | None = None
     clearance_m: float = 0.02
     singularity_margin: float = 0.15
+    shoulder_margin_m: float = 0.07
     min_duration_s: float = 0.2
     max_duration_s: float = 60.0
 
@@ -173,7 +190,8 @@ class TrajectoryLimits:
 @dataclasses.dataclass(frozen=True)
 class PoseTarget:
     """E at ``X_WE`` at path fraction ``s``: position within ``position_tolerance_m``
-    along each axis of W, rotation within ``rotation_tolerance_rad``; with
+    along each axis of W, rotation within ``rotation_tolerance_rad`` (at worst; see
+    ``_add_rotation_target``); with
     ``pass_speed_m_s`` and ``q_nominal`` (6,), a configuration at E's pose, E passes
     there at most that fast along each axis of W (linearized at ``q_nominal``: the
     target pins the configuration within a millimetre of it)."""
@@ -269,6 +287,10 @@ class OptimizedTrajectory:
         SNOPT stopped at an iteration limit of :class:`SolverBudget`.
     safety_stopped : bool
         The wall-clock safety stop ended the solve (an error; ``trajectory`` is None).
+    nearly_feasible : bool
+        SNOPT reported the program infeasible (info 13) at an iterate that violates no
+        constraint by more than 1e-4; ``trajectory`` is that iterate, for the caller to
+        check.
     """
 
     trajectory: BsplineTrajectory | None
@@ -278,6 +300,7 @@ class OptimizedTrajectory:
     evaluations: int = 0
     budget_spent: bool = False
     safety_stopped: bool = False
+    nearly_feasible: bool = False
 
     @property
     def duration(self) -> float:
@@ -350,6 +373,72 @@ def _add_pass_speed_bound(trajopt: KinematicTrajectoryOptimization, J: np.ndarra
     prog = trajopt.get_mutable_prog()
     prog.AddLinearConstraint(upper, np.full(3, -np.inf), np.zeros(3), variables)
     prog.AddLinearConstraint(lower, np.zeros(3), np.full(3, np.inf), variables)
+
+
+# The wrist centre's signed distance from the shoulder axis
+# (``joint_path.shoulder_singularity_distance``) is the x coordinate, in the shoulder
+# link's frame, of the wrist-2 link's origin (tests/test_trajectory_optimization.py
+# checks this on random configurations).
+SHOULDER_FRAME_NAME, WRIST_CENTRE_FRAME_NAME = "shoulder_link", "wrist_2_link"
+
+
+def _add_shoulder_margin(trajopt: KinematicTrajectoryOptimization, scene: OptimizationScene,
+                         q_ends: Sequence[np.ndarray], fractions: np.ndarray, margin_m: float) -> bool:
+    """The wrist centre at least ``margin_m`` from the shoulder axis at each path
+    fraction of ``fractions``, on the side the ends ``q_ends`` (two (6,) configurations)
+    lie on. "Outside a cylinder" is not convex, but on a fixed side it is a half space
+    in the shoulder link's frame (which turns with q1): one Drake ``PositionConstraint``
+    with a one-sided bound on x, evaluated in C++ like the other path constraints. The
+    margin is lowered to the ends' own distance where that is less (the ends are fixed).
+    False (nothing added) when the ends lie on opposite sides or there is no fraction."""
+    ends = [shoulder_singularity_distance(q) for q in q_ends]
+    if ends[0] * ends[1] <= 0.0 or not len(fractions):
+        return False
+    margin_m = min(margin_m, abs(ends[0]), abs(ends[1]))
+    lower, upper = np.full(3, -np.inf), np.full(3, np.inf)
+    if ends[0] > 0:
+        lower[0] = margin_m
+    else:
+        upper[0] = -margin_m
+    plant = scene.plant
+    constraint = PositionConstraint(plant, plant.GetFrameByName(SHOULDER_FRAME_NAME, scene.model), lower, upper,
+                                    plant.GetFrameByName(WRIST_CENTRE_FRAME_NAME, scene.model), np.zeros(3),
+                                    scene.plant_context)
+    for s in fractions:
+        trajopt.AddPathPositionConstraint(constraint, float(s))
+    return True
+
+
+# The lever of a rotation target's points (m): E's rotation is held through the positions
+# of points this far along E's x and y axes.
+_ROTATION_LEVER_M = 1.0
+
+
+def _add_rotation_target(trajopt: KinematicTrajectoryOptimization, scene: OptimizationScene,
+                         target: PoseTarget) -> None:
+    """E's rotation within about ``target.rotation_tolerance_rad`` of the target's at its
+    path fraction, as position boxes of the points 1 m along E's x and y axes.
+
+    An ``OrientationConstraint`` bounds ``trace(R_error)``, whose gradient vanishes as
+    the error does: at 0.3 deg a violation of 4.6e-5 in it is 0.49 deg, so SNOPT
+    declared filling and pouring (exact planner, seed 4) infeasible with con_4 0.49 deg
+    off, and iterates at the iteration limit missed con_2 by 5 deg while nearly
+    feasible in its measure. A point 1 m out moves 1 m per radian, as E's position does.
+    With both points and E's origin within ``delta`` and ``epsilon`` of their targets on
+    each axis, the rotation error is at most ``sqrt(6) (delta + epsilon) / lever``: the
+    box half-width ``delta`` makes that the tolerance."""
+    plant, world, frame_E = scene.plant, scene.plant.world_frame(), scene.frame_E
+    lever = _ROTATION_LEVER_M
+    delta = max(target.rotation_tolerance_rad * lever / math.sqrt(6.0) - target.position_tolerance_m,
+                target.position_tolerance_m)
+    X = target.X_WE
+    for axis in (0, 1):
+        p_EP = np.zeros(3)
+        p_EP[axis] = lever
+        p_WP = X.multiply(p_EP)
+        trajopt.AddPathPositionConstraint(
+            PositionConstraint(plant, world, p_WP - delta, p_WP + delta, frame_E, p_EP, scene.plant_context),
+            target.s)
 
 
 def _singularity_free_interval(values: np.ndarray, margin: float) -> tuple[float, float] | None:
@@ -428,9 +517,7 @@ def optimize_joint_trajectory(
         tolerance = np.full(3, target.position_tolerance_m)
         trajopt.AddPathPositionConstraint(
             PositionConstraint(plant, world, p - tolerance, p + tolerance, frame_E, np.zeros(3), context), target.s)
-        trajopt.AddPathPositionConstraint(
-            OrientationConstraint(plant, world, target.X_WE.rotation(), frame_E, RotationMatrix(),
-                                  target.rotation_tolerance_rad, context), target.s)
+        _add_rotation_target(trajopt, scene, target)
         if target.pass_speed_m_s is not None and target.q_nominal is not None:
             _add_pass_speed_bound(trajopt, scene.translational_jacobian(target.q_nominal), target.s,
                                   target.pass_speed_m_s)
@@ -443,9 +530,13 @@ def optimize_joint_trajectory(
             trajopt.AddPathPositionConstraint(
                 OrientationConstraint(plant, world, bound.R_WE, frame_E, RotationMatrix(), bound.angle_rad, context),
                 bound.s)
+    samples = np.linspace(0.0, 1.0, max(clearance_samples, 2))
+    if limits.shoulder_margin_m > 0.0:
+        _add_shoulder_margin(trajopt, scene, (q_start, q_goal), samples[1:-1],  # the ends are fixed
+                             limits.shoulder_margin_m)
     if scene.has_boxes and clearance_samples > 0:
         clearance = MinimumDistanceLowerBoundConstraint(plant, limits.clearance_m, context, None, 0.05)
-        for s in np.linspace(0.0, 1.0, clearance_samples):
+        for s in samples:
             trajopt.AddPathPositionConstraint(clearance, float(s))
     prog = trajopt.get_mutable_prog()
     # The guess in time: its duration is the initial guess of T.
@@ -485,7 +576,24 @@ def optimize_joint_trajectory(
         return OptimizedTrajectory(trajopt.ReconstructTrajectory(result), False,
                                    f"{_BUDGET_SPENT[info]} reached (SNOPT info {info})", elapsed, evaluations[0],
                                    budget_spent=True)
+    if info == _INFEASIBLE:
+        violation = _max_violation(prog, result.GetSolution())
+        if violation <= _NEARLY_FEASIBLE:
+            return OptimizedTrajectory(trajopt.ReconstructTrajectory(result), False,
+                                       f"{status}, violated by at most {violation:.1e}", elapsed, evaluations[0],
+                                       nearly_feasible=True)
     return OptimizedTrajectory(None, False, status, elapsed, evaluations[0])
+
+
+def _max_violation(prog, x: np.ndarray) -> float:
+    """The largest amount by which ``x`` breaks a constraint of ``prog``."""
+    worst = 0.0
+    for binding in prog.GetAllConstraints():
+        value = np.asarray(prog.EvalBinding(binding, x), dtype=float).reshape(-1)
+        if value.size:
+            c = binding.evaluator()
+            worst = max(worst, float(np.max(np.maximum(c.lower_bound() - value, value - c.upper_bound()))))
+    return worst
 
 
 def _tool_speed_and_acceleration(scene: OptimizationScene, trajectory: BsplineTrajectory, tau: float,

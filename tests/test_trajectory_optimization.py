@@ -1,0 +1,61 @@
+"""The trajectory-optimization program (``robot/trajectory_optimization.py``): the
+shoulder-singularity margin, which the joint-path check demands and the program must
+keep too."""
+
+import numpy as np
+import pytest
+
+from drake_lfd.robot.joint_path import shoulder_singularity_distance
+from drake_lfd.robot.trajectory_optimization import (
+    SHOULDER_FRAME_NAME,
+    WRIST_CENTRE_FRAME_NAME,
+    OptimizationScene,
+    TrajectoryLimits,
+    fit_bspline,
+    optimize_joint_trajectory,
+)
+from drake_lfd.robot.workcell import Workcell
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return OptimizationScene(Workcell.make())
+
+
+def test_wrist_centre_x_in_the_shoulder_frame_is_the_shoulder_distance(scene):
+    plant, context = scene.plant, scene.plant_context
+    shoulder = plant.GetFrameByName(SHOULDER_FRAME_NAME, scene.model)
+    wrist = plant.GetFrameByName(WRIST_CENTRE_FRAME_NAME, scene.model)
+    rng = np.random.default_rng(3)
+    for q in rng.uniform(-3.0, 3.0, (30, 6)):
+        plant.SetPositions(context, scene.model, q)
+        x = plant.CalcRelativeTransform(context, shoulder, wrist).translation()[0]
+        assert x == pytest.approx(shoulder_singularity_distance(q), abs=1e-9)
+
+
+def test_program_keeps_the_wrist_centre_off_the_shoulder_axis(scene):
+    # Both ends well off the axis (on its negative side); the guess's middle passes
+    # 5 mm from it.
+    q_start = np.array([0.0, -2.0, 1.5, -1.5, 1.5, 0.0])
+    q_goal = np.array([1.0, -2.0, 1.3, -1.6, 1.4, 0.5])
+    q_mid = 0.5 * (q_start + q_goal)
+    # Lift the upper arm (q2) until the wrist centre is 5 mm from the axis.
+    q2 = np.linspace(q_mid[1] - 0.6, q_mid[1], 6001)
+    distances = [shoulder_singularity_distance(np.r_[q_mid[0], x, q_mid[2:]]) for x in q2]
+    q_mid[1] = q2[int(np.argmin(np.abs(np.array(distances) + 0.005)))]
+    assert shoulder_singularity_distance(q_start) < -0.1 and shoulder_singularity_distance(q_goal) < -0.1
+    assert -0.01 < shoulder_singularity_distance(q_mid) < 0.0
+    s = np.linspace(0.0, 1.0, 41)
+    samples = np.array([np.interp(s, [0.0, 0.5, 1.0], [q_start[j], q_mid[j], q_goal[j]]) for j in range(6)]).T
+    guess = fit_bspline(s, samples, 9, rest_ends=True, pins=[(0.5, q_mid)])
+    # A margin of 15 cm binds here: without it the motion comes closer.
+    closest = {}
+    for margin in (0.0, 0.15):
+        solved = optimize_joint_trajectory(scene, guess, 3.0, clearance_samples=15,
+                                           limits=TrajectoryLimits(shoulder_margin_m=margin))
+        assert solved.trajectory is not None, solved.status
+        T = solved.duration
+        closest[margin] = max(shoulder_singularity_distance(solved.trajectory.value(fraction * T)[:, 0])
+                              for fraction in np.linspace(0.0, 1.0, 15))
+    assert closest[0.0] > -0.12
+    assert closest[0.15] <= -0.15 + 1e-5
