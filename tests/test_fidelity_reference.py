@@ -146,6 +146,14 @@ def test_elementwise_terms_equal_the_reference():
     new = fidelity.fidelity_terms(beta, task_q, task_t, demo.rotations, demo.translations, h, weights, MIN)
     old = reference_fidelity_terms(beta, task_q, task_t, demo.rotations, demo.translations, h, weights, MIN)
     assert np.array_equal(new[0], old[0]) and np.array_equal(new[1], old[1])
+    # Every task delta against every demo delta at once, as the pairs one by one.
+    square = np.broadcast_to(beta[:, None], (len(demo), len(demo)))
+    grid = fidelity.fidelity_terms(square, task_q[:, None], task_t[:, None], demo.rotations[None],
+                                   demo.translations[None], h[None], weights, MIN)
+    rows, columns = np.indices(square.shape).reshape(2, -1)
+    pairs = reference_fidelity_terms(square.reshape(-1), task_q[rows], task_t[rows], demo.rotations[columns],
+                                     demo.translations[columns], h[columns], weights, MIN)
+    assert np.array_equal(grid[0].reshape(-1), pairs[0]) and np.array_equal(grid[1].reshape(-1), pairs[1])
 
 
 @pytest.mark.slow

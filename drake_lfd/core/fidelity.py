@@ -391,8 +391,9 @@ def action_pair_costs(
         ``pair``: alpha plus the weighted direction, stretch and anchor terms where the
         pair is similar (Eq. 19-21), inf where it is not; ``first``: what the pair adds
         when it is the allocation's first (the excursion), 0 where it is not similar.
-        The terms are computed for every task delta against blocks of demo deltas at
-        once and kept where the pair is similar.
+        The terms are computed for the similar pairs only, in blocks of flat arrays; a
+        single task delta (a configuration with fixed orientations) broadcasts, so its
+        own terms are computed once.
     """
     if check_cost_mode(cost) == "paper" and not tie_break:
         alpha = pair_costs(task_rotations, task_translations, demo_rotations, demo_translations, tolerances)
