@@ -58,11 +58,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from drake_lfd.core.dual_quaternion import (
     IDENTITY_DUAL_QUATERNION,
-    quaternion_conjugate,
+    dual_quaternion_conjugate,
+    dual_quaternion_multiply,
     translation_from_dual_quaternion,
-    vector_rotated_by_quaternion,
 )
-from drake_lfd.core.features import Feature, poses_from_deltas
+from drake_lfd.core.features import Feature
 from drake_lfd.core.similarity import Tolerances, alpha_beta_matrices, pair_costs, similar_pair_costs
 
 __all__ = [
@@ -72,6 +72,7 @@ __all__ = [
     "check_cost_mode",
     "suffix_excursions",
     "feature_excursions",
+    "deltas_excursions",
     "fidelity_terms",
     "action_pair_costs",
 ]
@@ -152,28 +153,53 @@ def suffix_excursions(positions: ArrayLike, min_length_m: float = Tolerances().m
 
     Parameters
     ----------
-    positions : array-like, shape (m, 3)
-        The demo's (resampled) positions, in any one frame.
+    positions : array-like, shape (..., m, 3)
+        The demo's (resampled) positions, in any one frame; leading dimensions are
+        separate paths of the same length (computed at once).
     min_length_m : float
         A chord shorter than this has no direction: the mapping does not scale such a
         suffix (scale 1), so its excursion is 0.
 
     Returns
     -------
-    h : array, shape (m - 1,)
+    h : array, shape (..., m - 1)
         ``h[i]`` is the largest distance (m) of ``positions[i:]`` from the line through
         ``positions[i]`` and ``positions[-1]``: one per demo delta index.
     """
     p = np.asarray(positions, dtype=float)
-    chord = p[-1] - p[:-1]  # (m - 1, 3)
-    length = np.linalg.norm(chord, axis=1)
-    unit = chord / np.maximum(length, min_length_m)[:, None]
-    offsets = p[None, :, :] - p[:-1, None, :]  # (i, j, 3): positions[j] from positions[i]
-    distance = np.linalg.norm(np.cross(offsets, unit[:, None, :]), axis=2)
-    later = np.arange(len(p))[None, :] >= np.arange(len(p) - 1)[:, None]
-    h = np.where(later, distance, 0.0).max(axis=1)
+    m = p.shape[-2]
+    chord = p[..., -1:, :] - p[..., :-1, :]  # (..., m - 1, 3)
+    length = np.linalg.norm(chord, axis=-1)
+    unit = chord / np.maximum(length, min_length_m)[..., None]
+    # By components (contiguous along the path): for each i, the offsets of the later
+    # positions j > i, their cross product with the chord's unit vector and its squared
+    # length, rounded as np.cross and norm round them (position i itself is at 0).
+    position = np.ascontiguousarray(np.moveaxis(p, -1, 0))  # (3, ..., m)
+    direction = np.moveaxis(unit, -1, 0)  # (3, ..., m - 1)
+    squared = np.empty(p.shape[:-2] + (m - 1,))
+    for i in range(m - 1):
+        offsets = [position[c, ..., i + 1:] - position[c, ..., i, None] for c in range(3)]
+        squared[..., i] = _cross_squared(offsets, [direction[c, ..., i, None] for c in range(3)]).max(axis=-1)
+    h = np.sqrt(squared)  # sqrt is monotone: the largest distance
     h[length < min_length_m] = 0.0
     return h
+
+
+def _cross_squared(a: list, b: list) -> NDArray[np.float64]:
+    """``|a x b|^2`` of vectors given by components (lists of 3 arrays that broadcast),
+    rounded exactly as ``np.linalg.norm(np.cross(a, b), axis=-1) ** 2`` before its sqrt."""
+    c0 = a[1] * b[2]
+    c0 -= a[2] * b[1]
+    c1 = a[2] * b[0]
+    c1 -= a[0] * b[2]
+    c2 = a[0] * b[1]
+    c2 -= a[1] * b[0]
+    c0 *= c0
+    c1 *= c1
+    c2 *= c2
+    c0 += c1
+    c0 += c2
+    return c0
 
 
 def feature_excursions(feature: Feature, min_length_m: float = Tolerances().min_translation_m
@@ -181,8 +207,60 @@ def feature_excursions(feature: Feature, min_length_m: float = Tolerances().min_
     """:func:`suffix_excursions` of a demonstration's feature, one per delta index (its
     positions rebuilt from the deltas in the last pose's frame: the excursions do not
     depend on where the demonstration was)."""
-    poses = poses_from_deltas(feature.deltas, IDENTITY_DUAL_QUATERNION)
-    return suffix_excursions(translation_from_dual_quaternion(poses), min_length_m)
+    return deltas_excursions(feature.deltas, min_length_m)
+
+
+def deltas_excursions(deltas: ArrayLike, min_length_m: float = Tolerances().min_translation_m
+                      ) -> NDArray[np.float64]:
+    """:func:`feature_excursions` of demonstrations given by their deltas.
+
+    Parameters
+    ----------
+    deltas : array-like, shape (..., n, 8)
+        Unit dual quaternions, a feature's ``deltas``; leading dimensions are separate
+        demonstrations. A shorter demonstration may be padded after its deltas with the
+        identity: its positions then end with copies of the last one, which change
+        neither a chord nor a largest distance, so its first excursions are its own.
+    min_length_m : float
+
+    Returns
+    -------
+    h : array, shape (..., n)
+    """
+    deltas = np.asarray(deltas, dtype=float)
+    poses = dual_quaternion_multiply(IDENTITY_DUAL_QUATERNION, dual_quaternion_conjugate(deltas))
+    final = np.broadcast_to(IDENTITY_DUAL_QUATERNION, deltas.shape[:-2] + (1, 8))
+    positions = translation_from_dual_quaternion(np.concatenate([poses, final], axis=-2))
+    return suffix_excursions(positions, min_length_m)
+
+
+def _rotated_by_conjugate(q: list, v: list) -> list:
+    """``vector_rotated_by_quaternion(quaternion_conjugate(q), v)`` by components (lists
+    of 4 and 3 arrays that broadcast), rounded exactly as that function: the conjugate's
+    negated vector part ``u = -q_v`` is folded into the signs (``u x v = -(q_v x v)`` and
+    ``u x (u x v) = q_v x (q_v x v)``, exact in IEEE arithmetic)."""
+    w2 = 2.0 * q[0]
+    qv = q[1:]
+    uv = _cross(qv, v)  # -(u x v)
+    uuv = _cross(qv, uv)  # u x (u x v)
+    out = []
+    for c in range(3):
+        term = w2 * uv[c]
+        start = v[c] - term  # v + 2 w (u x v)
+        uuv[c] *= 2.0
+        start += uuv[c]
+        out.append(start)
+    return out
+
+
+def _cross(a: list, b: list) -> list:
+    """``np.cross`` of vectors given by components, rounded as it rounds."""
+    out = []
+    for i, j in ((1, 2), (2, 0), (0, 1)):
+        c = a[i] * b[j]
+        c -= a[j] * b[i]
+        out.append(c)
+    return out
 
 
 def fidelity_terms(
@@ -195,20 +273,22 @@ def fidelity_terms(
     weights: FidelityWeights = FidelityWeights(),
     min_length_m: float = Tolerances().min_translation_m,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The fidelity terms of pairs (module docstring), elementwise: pair ``e`` is task
-    delta ``e`` with demo delta ``e``.
+    """The fidelity terms of pairs (module docstring), elementwise with broadcasting:
+    pair ``e`` is task delta ``e`` with demo delta ``e``, or, with task arrays of shape
+    (p, 1, ...) and demo arrays of shape (1, n, ...), every pair of the two at once (the
+    task side's own terms are then computed once per task delta).
 
     Parameters
     ----------
-    beta : array-like, shape (m,)
+    beta : array-like, shape (...)
         The pairs' translation cosines (:func:`similarity.alpha_beta_matrices`).
-    task_rotations : array-like, shape (m, 4)
+    task_rotations : array-like, shape (..., 4)
         Unit quaternions.
-    task_translations : array-like, shape (m, 3)
-    demo_rotations : array-like, shape (m, 4)
+    task_translations : array-like, shape (..., 3)
+    demo_rotations : array-like, shape (..., 4)
         Unit quaternions.
-    demo_translations : array-like, shape (m, 3)
-    demo_excursions : array-like, shape (m,)
+    demo_translations : array-like, shape (..., 3)
+    demo_excursions : array-like, shape (...)
         :func:`suffix_excursions` of the demo delta indices.
     weights : FidelityWeights
     min_length_m : float
@@ -216,7 +296,7 @@ def fidelity_terms(
 
     Returns
     -------
-    pair, first : arrays, shape (m,)
+    pair, first : arrays, shape (...) (the broadcast shape)
         ``pair``: the weighted direction, stretch and anchor terms; ``first``: the
         weighted excursion, which counts only where the pair is the allocation's first.
     """
@@ -225,30 +305,56 @@ def fidelity_terms(
     demo_q = np.asarray(demo_rotations, dtype=float)
     task_length = np.linalg.norm(t, axis=-1)
     demo_length = np.linalg.norm(np.asarray(demo_translations, dtype=float), axis=-1)
+    demo_short = demo_length < min_length_m
+    both_short = (task_length < min_length_m) & demo_short
     log_ratio = np.log(np.maximum(task_length, min_length_m)) - np.log(np.maximum(demo_length, min_length_m))
-    direction = np.arccos(np.clip(np.asarray(beta, dtype=float), -1.0, 1.0))
-    pair = weights.direction_per_rad * direction + weights.log_scale * np.abs(log_ratio)
-    pair[(task_length < min_length_m) & (demo_length < min_length_m)] = 0.0
+    direction = np.clip(np.asarray(beta, dtype=float), -1.0, 1.0)
+    np.arccos(direction, out=direction)
+    pair = weights.direction_per_rad * direction
+    stretch = np.abs(log_ratio)
+    stretch *= weights.log_scale
+    pair = pair + stretch
+    any_both_short = bool(np.any(both_short))
+    if any_both_short:
+        both_short = np.broadcast_to(both_short, pair.shape)
+        pair[both_short] = 0.0
     # Anchor: where the demo's rotation puts the pair's start, against the task's.
-    start_demo = vector_rotated_by_quaternion(quaternion_conjugate(demo_q), t)
-    start_task = vector_rotated_by_quaternion(quaternion_conjugate(task_q), t)
-    pair += weights.anchor_per_m * np.linalg.norm(start_demo - start_task, axis=-1)
+    v = [t[..., c] for c in range(3)]
+    start_demo = _rotated_by_conjugate([demo_q[..., c] for c in range(4)], v)
+    start_task = _rotated_by_conjugate([task_q[..., c] for c in range(4)], v)
+    offset = [start_demo[c] - start_task[c] for c in range(3)]
+    squared = offset[0] * offset[0]
+    for c in (1, 2):
+        offset[c] *= offset[c]
+        squared += offset[c]
+    np.sqrt(squared, out=squared)
+    squared *= weights.anchor_per_m
+    pair += squared
     # Bend: a later pair's anchor is where the first pair's alignment puts the demo; a
     # task translation turned from the demo's by ``direction`` moves it by the chord
     # ``2 |t_l| sin(direction / 2)``, which the anchor correction must make up. The first
     # pair is aligned exactly (no bend), so its share is taken back in ``first``.
-    bend = weights.bend_per_m * 2.0 * task_length * np.sin(0.5 * direction)
-    bend[(task_length < min_length_m) & (demo_length < min_length_m)] = 0.0
+    half = 0.5 * direction
+    np.sin(half, out=half)
+    bend = weights.bend_per_m * 2.0 * task_length * half
+    if any_both_short:
+        bend[both_short] = 0.0
     pair += bend
     # The mapping's scale if the pair is the first (Eq. 23: 1 for a short demo translation).
-    scale = np.where(demo_length < min_length_m, 1.0, np.exp(log_ratio))
-    first = weights.excursion_per_m * np.abs(scale - 1.0) * np.asarray(demo_excursions, dtype=float) - bend
+    scale = np.exp(log_ratio)
+    if np.any(demo_short):
+        scale = np.where(demo_short, 1.0, scale)
+    scale -= 1.0
+    first = np.abs(scale, out=scale)
+    first *= weights.excursion_per_m
+    first = first * np.asarray(demo_excursions, dtype=float)
+    first -= bend
     return pair, first
 
 
 # Similar pairs whose fidelity terms are computed at once (bounds the temporaries,
-# about 300 bytes a pair).
-_PAIRS_PER_BATCH = 1 << 16
+# about 300 bytes a pair, and keeps them in cache).
+_PAIRS_PER_BATCH = 1 << 15
 
 
 def action_pair_costs(
@@ -284,8 +390,10 @@ def action_pair_costs(
     pair, first : arrays, shape (p, n)
         ``pair``: alpha plus the weighted direction, stretch and anchor terms where the
         pair is similar (Eq. 19-21), inf where it is not; ``first``: what the pair adds
-        when it is the allocation's first (the excursion). The terms are computed for
-        the similar pairs only.
+        when it is the allocation's first (the excursion), 0 where it is not similar.
+        The terms are computed for the similar pairs only, in blocks of flat arrays; a
+        single task delta (a configuration with fixed orientations) broadcasts, so its
+        own terms are computed once.
     """
     if check_cost_mode(cost) == "paper" and not tie_break:
         alpha = pair_costs(task_rotations, task_translations, demo_rotations, demo_translations, tolerances)
@@ -297,11 +405,23 @@ def action_pair_costs(
     alpha, beta = alpha_beta_matrices(task_q, task_t, demo_q, demo_t, tolerances.min_translation_m)
     pair = similar_pair_costs(alpha, beta, tolerances)
     first = np.zeros(pair.shape)
-    rows, columns = np.nonzero(np.isfinite(pair))
-    for start in range(0, len(rows), _PAIRS_PER_BATCH):
-        r, c = rows[start:start + _PAIRS_PER_BATCH], columns[start:start + _PAIRS_PER_BATCH]
-        terms, first_terms = fidelity_terms(beta[r, c], task_q[r], task_t[r], demo_q[c], demo_t[c], demo_h[c],
-                                            weights, tolerances.min_translation_m)
-        pair[r, c] += factor * terms
-        first[r, c] = factor * first_terms
+    similar = np.flatnonzero(np.isfinite(pair))  # into pair.ravel()
+    if len(similar) == 0:
+        return pair, first
+    pair_flat, first_flat, beta_flat = pair.reshape(-1), first.reshape(-1), beta.reshape(-1)
+    n = pair.shape[1]
+    for start in range(0, len(similar), _PAIRS_PER_BATCH):
+        e = similar[start:start + _PAIRS_PER_BATCH]
+        if len(task_q) == 1:
+            c, q, t = e, task_q[0], task_t[0]
+        else:
+            r, c = np.divmod(e, n)
+            q, t = task_q[r], task_t[r]
+        terms, first_terms = fidelity_terms(beta_flat[e], q, t, demo_q[c], demo_t[c],
+                                            demo_h[c], weights, tolerances.min_translation_m)
+        if factor != 1.0:
+            terms *= factor
+            first_terms *= factor
+        pair_flat[e] += terms
+        first_flat[e] = first_terms
     return pair, first

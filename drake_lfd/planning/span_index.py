@@ -50,8 +50,9 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from drake_lfd.core.dual_quaternion import IDENTITY_DUAL_QUATERNION
 from drake_lfd.core.features import Feature
-from drake_lfd.core.fidelity import feature_excursions
+from drake_lfd.core.fidelity import deltas_excursions
 from drake_lfd.core.similarity import Tolerances, rotation_distance
 
 __all__ = ["BLOCK_DELTAS", "ALPHA_MARGIN", "SpanIndex", "PreparedLibrary", "prepared_library"]
@@ -61,6 +62,9 @@ __all__ = ["BLOCK_DELTAS", "ALPHA_MARGIN", "SpanIndex", "PreparedLibrary", "prep
 BLOCK_DELTAS = 8
 #: Slack on every alpha comparison of the index, far above the kernel's rounding (1e-8).
 ALPHA_MARGIN = 1e-6
+# Sample pairs of the suffix excursions computed at once (about 10 bytes each: one
+# sample's offsets at a time).
+_EXCURSION_PAIRS = 1 << 22
 # Libraries kept prepared (each holds its stacks; the key holds the features alive).
 _PREPARED_KEPT = 4
 
@@ -184,11 +188,19 @@ class PreparedLibrary:
     def excursions(self, demos: NDArray) -> NDArray[np.float64]:
         """``fidelity.feature_excursions`` of the demonstrations ``demos`` (s,), padded:
         shape (s, n_max). Computed on first use and kept (O(n^2) per demonstration, so
-        only the demonstrations that reach the exact test pay for it)."""
-        for d in demos[~self._has_excursions[demos]].tolist():
-            self._excursions[d, :self.lengths[d]] = feature_excursions(self.features[d],
-                                                                       self.tolerances.min_translation_m)
-            self._has_excursions[d] = True
+        only the demonstrations that reach the exact test pay for it), for the missing
+        ones of each length at once."""
+        missing = np.unique(demos[~self._has_excursions[demos]])
+        n_max = self._excursions.shape[1]
+        step = max(1, _EXCURSION_PAIRS // max(1, n_max * n_max))  # bounds the temporaries
+        for start in range(0, len(missing), step):
+            block = missing[start:start + step]
+            deltas = np.tile(IDENTITY_DUAL_QUATERNION, (len(block), n_max, 1))  # identity padding
+            for row, d in enumerate(block.tolist()):
+                deltas[row, :self.lengths[d]] = self.features[d].deltas
+            self._excursions[block] = deltas_excursions(deltas, self.tolerances.min_translation_m)
+            self._excursions[block] *= self.valid[block]  # the padding's are 0
+        self._has_excursions[missing] = True
         return self._excursions[demos]
 
 
