@@ -387,10 +387,12 @@ def _log_name(path):
 
 
 def _reason(error, path):
-    """An error's text without the log's own name in front (the refusal line names it)."""
+    """An error's text without the log's own name in front (the refusal line names it),
+    on one line (a parser's message may span several, as the single add flattens too)."""
     text = str(error)
     prefix = f"{path}: "
-    return text[len(prefix):] if text.startswith(prefix) else text
+    text = text[len(prefix):] if text.startswith(prefix) else text
+    return " ".join(text.splitlines())
 
 
 class _BulkAdd:

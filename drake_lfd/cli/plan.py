@@ -77,9 +77,9 @@ def load_policy_for(args, library=None):
 
     if args.planner != "q":
         return None
-    if library is not None and len(library_features(library)) > Q_PLANNER_MAX_DEMOS:
+    if library is not None and len(library.names) > Q_PLANNER_MAX_DEMOS:  # counted, no feature read
         raise InputError(f"--planner q serves libraries of at most {Q_PLANNER_MAX_DEMOS:,} demonstrations and "
-                         f"{library.label} has {len(library_features(library)):,}; use --planner exact",
+                         f"{library.label} has {len(library.names):,}; use --planner exact",
                          field="--planner")
     if not args.policy:
         raise InputError("--planner q needs --policy POLICY (train one with drake-lfd train)", field="--policy")

@@ -450,16 +450,25 @@ def plan_task(
     points_E = tool_clearance_points(task.X_tool0_E) if clearance_points_E is None else clearance_points_E
 
     feature_list = list(features.values())
+    span_memo: dict = {}
     twist_memo: dict = {}
+
+    def span_poses(step, first):
+        """``step``'s allocation from suffix ``first`` and its candidates' task poses
+        (memoized: the twists and the stretch bound both need them)."""
+        key = (step, first)
+        if key not in span_memo:
+            span = problem.span_allocation(step, first)
+            span_memo[key] = span, np.array(
+                [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)])
+        return span_memo[key]
 
     def twists_of(step, first, limit):
         """The twist order of ``step`` mapped from suffix ``first`` (memoized: the search
         composes the same steps again and again)."""
         key = (step, first, limit)
         if key not in twist_memo:
-            span = problem.span_allocation(step, first)
-            task_poses = np.array(
-                [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)])
+            span, task_poses = span_poses(step, first)
             twist_memo[key] = twist_order(feature_list[step.demo].poses, span.allocation, task_poses, keep_out,
                                           floor_z, points_E, limit=limit)
         return twist_memo[key]
@@ -482,9 +491,7 @@ def plan_task(
     def correction_of(step):
         """The largest position correction of ``step``'s default mapping (memoized)."""
         if step not in correction_memo:
-            span = problem.span_allocation(step)
-            task_poses = np.array(
-                [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)])
+            span, task_poses = span_poses(step, None)
             mapped, _ = map_span_clear(feature_list[step.demo].poses, span.allocation, task_poses,
                                        twist=twists_of(step, None, 1)[0])
             correction_memo[step] = mapped.max_correction_position_m
