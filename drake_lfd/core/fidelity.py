@@ -188,12 +188,7 @@ def suffix_excursions(positions: ArrayLike, min_length_m: float = Tolerances().m
 def _cross_squared(a: list, b: list) -> NDArray[np.float64]:
     """``|a x b|^2`` of vectors given by components (lists of 3 arrays that broadcast),
     rounded exactly as ``np.linalg.norm(np.cross(a, b), axis=-1) ** 2`` before its sqrt."""
-    c0 = a[1] * b[2]
-    c0 -= a[2] * b[1]
-    c1 = a[2] * b[0]
-    c1 -= a[0] * b[2]
-    c2 = a[0] * b[1]
-    c2 -= a[1] * b[0]
+    c0, c1, c2 = _cross(a, b)
     c0 *= c0
     c1 *= c1
     c2 *= c2
