@@ -88,7 +88,8 @@ def _configuration_problems(checker: JointPathChecker, poses: np.ndarray, con: i
     for D in poses:
         X_WE = RigidTransform(matrices_from_dual_quaternion(np.asarray(D)[None])[0])
         try:
-            branches = initial_configuration_candidates(X_WE, X_WB=checker.X_WB, scene=checker.scene, con=con)
+            branches = initial_configuration_candidates(X_WE, X_WB=checker.X_WB, scene=checker.scene, con=con,
+                                                        method="closed_form")
         except UnreachableConfigurationError:
             problems.append(("reach", "reach", "no inverse-kinematics solution reaches it"))
             continue

@@ -11,8 +11,10 @@ microseconds per pose instead of a nonlinear program per guess.
 
 Where a joint is free (wrist_2 aligned, ``sin q5 = 0``: wrist_1 and wrist_3 turn
 together), wrist_3 takes the value ``q6_free`` asks for. The angles come back in
-(-pi, pi]; the caller checks the limits and polishes on its own model
-(:func:`~drake_lfd.robot.initial_ik.initial_configuration_candidates`).
+(-pi, pi]; the caller checks the limits and the pose on its own model
+(:func:`~drake_lfd.robot.initial_ik.initial_configuration_candidates`: the URDF's
+forward kinematics equals the DH table's to 2e-16, the closed form's error is about
+1e-13).
 
 Not for: the preferred-branch ordering and the collision check (``initial_ik.py``).
 """

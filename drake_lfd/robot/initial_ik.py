@@ -1,14 +1,16 @@
 """The UR5e joint configuration at the first critical configuration (inverse kinematics).
 
-Differential IK needs a starting joint configuration. It comes from the inverse
-kinematics of con_1: every branch reaching the pose, in closed form
-(:mod:`~drake_lfd.robot.analytic_ik`: at most eight, shoulder towards / away from the
-target, elbow up / down, wrist flipped or not), inside the joint limits and checked by
-the plant's forward kinematics; among them a collision-free one (no link or tool shape
-inside an obstacle or safety shell) is preferred, then the one closest to a preferred
-elbow-up posture turned towards the target (weighted squared distance), then the branch
-of the earlier guess of a fixed list. The result is therefore deterministic for a given
-task. docs/method.rst (Closed loop and success) says where this enters a run.
+Differential IK needs a starting joint configuration. It comes from full inverse
+kinematics of con_1: position and orientation constraints with tight tolerances, the
+joint limits, and a quadratic cost towards a preferred elbow-up posture turned towards
+the target. A fixed list of initial guesses (the same for every call) covers the
+UR5e's IK branches (shoulder towards / away from the target, elbow up / down, wrist
+flipped or not); among the solutions found, a collision-free one (no link or tool
+shape inside an obstacle or safety shell) is preferred, then the lowest cost, then the earliest
+guess. The result is therefore deterministic for a given task. docs/method.rst (Closed
+loop and success) says where this enters a run. The plan-time check asks for every
+branch in closed form instead (``method="closed_form"``, :mod:`analytic_ik`): the same
+branches, exact, none missed, in microseconds.
 
 Not for: tracking the plan (``systems/differential_ik.py``), forward kinematics
 (``kinematics.py``), the scene's geometry (``scene.py``).
@@ -22,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.inverse_kinematics import InverseKinematics
+from pydrake.solvers import Solve
 
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.read_only_arrays import read_only_array
@@ -31,10 +35,13 @@ from drake_lfd.robot.kinematics import BASE_FRAME_NAME, END_EFFECTOR_FRAME_NAME,
 from drake_lfd.robot.scene import KinematicScene
 
 __all__ = [
+    "IK_POSITION_TOLERANCE_M",
+    "IK_ROTATION_TOLERANCE_RAD",
     "ACCEPTED_POSITION_ERROR_M",
     "ACCEPTED_ROTATION_ERROR_RAD",
     "NOMINAL_WEIGHTS",
     "ELBOW_UP_POSTURE",
+    "IK_METHODS",
     "UnreachableConfigurationError",
     "InitialConfiguration",
     "elbow_up_nominal",
@@ -43,12 +50,17 @@ __all__ = [
     "initial_configuration_candidates",
 ]
 
-# The errors a solution may show when checked by forward kinematics on the plant (the
-# closed form's are about 1e-13).
+# Constraint tolerances handed to the IK solver (not the closed loop's success
+# tolerances), and the errors a solution may show when checked by forward kinematics
+# afterwards.
+IK_POSITION_TOLERANCE_M = 1e-6
+IK_ROTATION_TOLERANCE_RAD = 1e-5
 ACCEPTED_POSITION_ERROR_M = 1e-5
 ACCEPTED_ROTATION_ERROR_RAD = 1e-4
-# Weights on (q - q_nominal) of the preference between branches: the arm joints decide
-# the posture; the wrist angles follow from the orientation and matter less.
+# How the branches are found (initial_configuration_candidates' ``method``).
+IK_METHODS = ("program", "closed_form")
+# Cost weights on (q - q_nominal): the arm joints decide the posture; the wrist angles
+# follow from the orientation and matter less.
 NOMINAL_WEIGHTS = read_only_array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])
 # The elbow-up posture of UR's documentation, tool pointing down, at shoulder_pan 0
 # (where the arm reaches along the base's -x axis).
@@ -146,12 +158,48 @@ def _centred_turns(q: np.ndarray, plant) -> np.ndarray:
     return q
 
 
-def _nearest_guess(q: np.ndarray, guesses: np.ndarray) -> int:
-    """Index of the guess (:func:`initial_guesses`) nearest ``q`` by the weighted
-    squared joint distance, each joint's difference wrapped into (-pi, pi]: the
-    branch's place in the preference."""
-    difference = np.remainder(guesses - q + np.pi, 2.0 * np.pi) - np.pi
-    return int(np.argmin(np.sum(NOMINAL_WEIGHTS * difference**2, axis=1)))
+def _program_solutions(plant, X_WE_desired: RigidTransform, q_nominal: np.ndarray, guesses: np.ndarray):
+    """``(guess index, q)`` of the inverse-kinematics program solved from each guess
+    (module docstring), q with its full-turn joints centred."""
+    frame_E = plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)
+    p_WE = X_WE_desired.translation()
+    ik = InverseKinematics(plant, with_joint_limits=True)
+    ik.AddPositionConstraint(
+        frameB=frame_E,
+        p_BQ=np.zeros(3),
+        frameA=plant.world_frame(),
+        p_AQ_lower=p_WE - IK_POSITION_TOLERANCE_M,
+        p_AQ_upper=p_WE + IK_POSITION_TOLERANCE_M,
+    )
+    ik.AddOrientationConstraint(
+        frameAbar=plant.world_frame(),
+        R_AbarA=X_WE_desired.rotation(),
+        frameBbar=frame_E,
+        R_BbarB=RotationMatrix(),
+        theta_bound=IK_ROTATION_TOLERANCE_RAD,
+    )
+    prog = ik.get_mutable_prog()
+    q_variables = ik.q()
+    prog.AddQuadraticErrorCost(np.diag(NOMINAL_WEIGHTS), q_nominal, q_variables)
+    for index, guess in enumerate(guesses):
+        result = Solve(prog, guess)
+        yield index, _centred_turns(result.GetSolution(q_variables), plant)
+
+
+def _closed_form_solutions(plant, model, context, X_WE_desired: RigidTransform, q_nominal: np.ndarray,
+                           guesses: np.ndarray):
+    """``(index of the nearest guess, q)`` of every branch in closed form (the flange's
+    pose in the base frame from the plant's own base and E frames), q with its
+    full-turn joints centred."""
+    world = plant.world_frame()
+    X_WB = plant.CalcRelativeTransform(context, world, plant.GetFrameByName(BASE_FRAME_NAME, model))
+    X_tool0_E = plant.CalcRelativeTransform(context, plant.GetFrameByName(TOOL0_FRAME_NAME, model),
+                                            plant.GetFrameByName(END_EFFECTOR_FRAME_NAME))
+    T_B_tool0 = X_WB.inverse().multiply(X_WE_desired).multiply(X_tool0_E.inverse()).GetAsMatrix4()
+    for q_branch in ur5e_branches(T_B_tool0, q6_free=float(q_nominal[5])):
+        q = _centred_turns(q_branch, plant)
+        difference = np.remainder(guesses - q + np.pi, 2.0 * np.pi) - np.pi
+        yield int(np.argmin(np.sum(NOMINAL_WEIGHTS * difference**2, axis=1))), q
 
 
 def _rotation_angle(R_a: RotationMatrix, R_b: RotationMatrix) -> float:
@@ -175,6 +223,7 @@ def initial_configuration_candidates(
     q_nominal: np.ndarray | None = None,
     scene: KinematicScene | None = None,
     tool=None,
+    method: str = "program",
 ) -> list[InitialConfiguration]:
     """Every distinct joint configuration (IK branch) placing E at ``X_WE_desired``, best
     first: collision-free before colliding, then closest to the preferred posture (elbow
@@ -197,6 +246,13 @@ def initial_configuration_candidates(
         tool's shapes count in the clearance like the links).
     tool : tuple of ToolShape, optional
         Without ``scene``: the tool (None: the default of ``X_tool0_E``).
+    method : {"program", "closed_form"}
+        ``"program"``: the nonlinear program from each guess (module docstring; what
+        the bundled demonstrations were recorded from). ``"closed_form"``: every branch
+        exactly, by :func:`~drake_lfd.robot.analytic_ik.ur5e_branches` (microseconds
+        instead of milliseconds; each branch placed as the guess nearest it, wrist_3
+        at the preferred posture's where the wrist is aligned): what the plan-time
+        check uses, which must see every branch.
 
     Returns
     -------
@@ -221,23 +277,21 @@ def initial_configuration_candidates(
         q_nominal = elbow_up_nominal(p_WE, X_WB)
     q_nominal = np.asarray(q_nominal, dtype=float)
 
+    if method not in IK_METHODS:
+        raise ValueError(f"method must be one of {IK_METHODS}, got {method!r}")
     candidates = []
     kinematics_context = plant.CreateDefaultContext()
     guesses = initial_guesses(q_nominal)
-    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
-    # The flange's pose in the base frame, by the plant's own frames (base and E).
-    X_WB_plant = plant.CalcRelativeTransform(kinematics_context, world,
-                                             plant.GetFrameByName(BASE_FRAME_NAME, model))
-    X_tool0_E_plant = plant.CalcRelativeTransform(kinematics_context,
-                                                  plant.GetFrameByName(TOOL0_FRAME_NAME, model), frame_E)
-    T_B_tool0 = X_WB_plant.inverse().multiply(X_WE_desired).multiply(X_tool0_E_plant.inverse()).GetAsMatrix4()
-    for q_branch in ur5e_branches(T_B_tool0, q6_free=float(q_nominal[5])):
-        q = _centred_turns(q_branch, plant)
-        index = _nearest_guess(q, guesses)
+    if method == "closed_form":
+        solutions = _closed_form_solutions(plant, model, kinematics_context, X_WE_desired, q_nominal, guesses)
+    else:
+        solutions = _program_solutions(plant, X_WE_desired, q_nominal, guesses)
+    for index, q in solutions:
         plant.SetPositions(kinematics_context, model, q)
         X_WE = plant.CalcRelativeTransform(kinematics_context, world, frame_E)
         position_error = float(np.linalg.norm(X_WE.translation() - p_WE))
         rotation_error = _rotation_angle(X_WE.rotation(), R_WE)
+        lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
         within_limits = bool(np.all(q >= lower - 1e-9) and np.all(q <= upper + 1e-9))
         if not (
             within_limits
@@ -269,7 +323,8 @@ def initial_configuration_candidates(
         raise UnreachableConfigurationError(
             f"con_{con} at p = {np.round(p_WE, 4).tolist()} m, euler_zyx = "
             f"{np.round(rpy[::-1], 2).tolist()} deg is out of the UR5e's reach "
-            f"(no inverse-kinematics branch within the joint limits reaches it)",
+            + (f"(inverse kinematics failed from all {len(guesses)} initial guesses)" if method == "program"
+               else "(no inverse-kinematics branch inside the joint limits reaches it)"),
             field=f"critical_configurations[{con - 1}]",
         )
     candidates.sort(key=lambda item: item[:3])

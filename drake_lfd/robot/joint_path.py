@@ -532,7 +532,8 @@ class JointPathChecker:
         key = np.ascontiguousarray(X_WE.GetAsMatrix34()).tobytes()
         if key not in self._start_cache:
             try:
-                found = initial_configuration_candidates(X_WE, X_WB=self.X_WB, scene=self.scene)
+                found = initial_configuration_candidates(X_WE, X_WB=self.X_WB, scene=self.scene,
+                                                         method="closed_form")
             except UnreachableConfigurationError:
                 found = []
             clearance = self.limits.clearance_m
