@@ -44,7 +44,6 @@ Not for: checking the path (``joint_path.py``) or choosing it (``planning/``).
 from __future__ import annotations
 
 import dataclasses
-import logging
 import math
 from collections.abc import Sequence
 
@@ -57,6 +56,7 @@ from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.timing import TimedPlan, TimingLimits
 from drake_lfd.robot.joint_path import JointPath
 from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.robot.toppra import path_constraints, solve_parametrization
 
 __all__ = ["PathTimingOptions", "TimedJointPath", "TimingError", "time_joint_path", "retime_plan",
            "corner_samples", "forget_timed_pieces"]
@@ -206,28 +206,20 @@ class _PieceTimer:
                          self.tool_speed, self.tool_acceleration)
 
     def solve(self, path: PiecewisePolynomial) -> PiecewisePolynomial | None:
-        """s(t), or None when Toppra finds none (its own error line is silenced: the
-        caller tries another fit or reports)."""
+        """s(t), or None when TOPP-RA finds none (the caller tries another fit or
+        reports): Drake's ``Toppra`` on this grid and these limits, its programs solved
+        in closed form (:mod:`~drake_lfd.robot.toppra`)."""
         grid = np.unique(np.concatenate([
             Toppra.CalcGridPoints(path, CalcGridPointsOptions()), np.asarray(path.get_segment_times())]))
         # Grid points closer than this make Toppra's s(t) break times collide.
         grid = grid[np.concatenate([[True], np.diff(grid) > 1e-6 * max(grid[-1], 1e-9)])]
         grid[-1] = path.end_time()
-        toppra = Toppra(path, self.kinematics.plant, grid)
-        toppra.AddJointVelocityLimit(-self.v, self.v)
-        toppra.AddJointAccelerationLimit(-self.a, self.a)
-        frame = self.kinematics.end_effector_frame
-        toppra.AddFrameTranslationalSpeedLimit(frame, self.tool_speed)
-        if self.tool_acceleration is not None:
-            bound = np.array([np.inf, np.inf, np.inf] + [self.tool_acceleration] * 3)
-            toppra.AddFrameAccelerationLimit(frame, -bound, bound)
-        logger = logging.getLogger("drake")
-        level = logger.level
-        logger.setLevel(logging.CRITICAL)
-        try:
-            s_of_t = toppra.SolvePathParameterization()
-        finally:
-            logger.setLevel(level)
+        constraints = path_constraints(
+            path, grid, self.kinematics.plant, self.kinematics.end_effector_frame, joint_speed=self.v,
+            joint_acceleration=self.a, tool_speed=self.tool_speed,
+            tool_acceleration=None if self.tool_acceleration is None else
+            np.array([np.inf] * 3 + [self.tool_acceleration] * 3))
+        s_of_t = solve_parametrization(constraints)
         # A grid too coarse for the path can give a parametrization that barely moves.
         if s_of_t is None or not (math.isfinite(s_of_t.end_time()) and s_of_t.end_time() < _LONGEST_PIECE_S):
             return None
