@@ -117,9 +117,13 @@ def search_executable(
     ``max_starts``, each time on a fresh copy of ``problem`` (an action blocked from one
     start may run from another). The blocked segments reported are the first start's.
 
-    ``refusal(problem)`` (``planning/refusals.py``) is asked once, when the first
-    composition is blocked: the segments it returns block every composition whatever
-    is chosen, and the search stops with them at once.
+    ``refusal(problem)`` (``planning/refusals.py``) is asked once, when the search is
+    first about to forbid something (a blocked step whose alternatives all failed, or
+    a start): the segments it returns block every composition whatever is chosen, and
+    the search stops with them at once. Asked then rather than at the first blocked
+    composition, it costs nothing when an alternative mapping gets the arm past the
+    block (the common case on the paper's tasks), and sees the problem as it was then
+    (alternatives forbid nothing), so its segments are the same.
     """
     first = None
     asked: list = []
@@ -177,13 +181,12 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
         composed, path = check(overrides)
         if path is not None:
             tried_a_start = True
-        if path is None or not path.executable:
-            refusal = refused(problem)
-            if refusal:
-                return ExecutableSearch(None, None, None, refusal, rounds, tried_a_start)
         if path is None:
             # con_1 at this candidate has no collision-free joint configuration: no
             # action from it can run.
+            refusal = refused(problem)
+            if refusal:
+                return ExecutableSearch(None, None, None, refusal, rounds, tried_a_start)
             step = steps[0]
             blocked.append(InfeasibleSegment(step.j + 1, step.k + 1, "reach",
                                              f"no collision-free joint configuration reaches con_{step.j + 1}",
@@ -198,6 +201,9 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
         if first_blocker.time_s == 0.0:
             # The start itself is blocked: no action from this candidate of con_1 can
             # run from this branch.
+            refusal = refused(problem)
+            if refusal:
+                return ExecutableSearch(None, None, None, refusal, rounds, tried_a_start)
             blocked.append(InfeasibleSegment(step.j + 1, step.k + 1, first_blocker.reason,
                                              f"at con_{step.j + 1}, the start: {first_blocker.detail}",
                                              demo_names[step.demo]))
@@ -218,6 +224,9 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
             if path.executable:
                 return ExecutableSearch(steps, composed, path, tuple(blocked), rounds, True)
             continue  # the next blocker is in a later step
+        refusal = refused(problem)
+        if refusal:
+            return ExecutableSearch(None, None, None, refusal, rounds, tried_a_start)
         blocked.append(InfeasibleSegment(step.j + 1, step.k + 1, first_blocker.reason, first_blocker.detail,
                                          demo_names[step.demo]))
         problem.forbid(step)

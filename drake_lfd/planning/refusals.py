@@ -1,4 +1,4 @@
-"""Refusals that no choice of composition can change, decided before alternatives are tried.
+"""Refusals that no choice of composition can change, decided before anything is forbidden.
 
 The executable-plan search (``executable.py``) forbids a blocked action and solves again,
 so a task whose every composition is blocked costs one joint-path follow per legal
@@ -32,15 +32,16 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import weakref
 from collections.abc import Sequence
 
 import numpy as np
 from pydrake.math import RigidTransform
 
 from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion, translation_from_dual_quaternion
+from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.planning.composition import CompositionProblem
 from drake_lfd.planning.executable import InfeasibleSegment
-from drake_lfd.robot.initial_ik import UnreachableConfigurationError, initial_configuration_candidates
 from drake_lfd.robot.joint_path import JointPathChecker, shoulder_singularity_distance
 
 __all__ = ["branch_signature", "branch_violation", "blocked_configurations", "distinct_reasons"]
@@ -87,10 +88,8 @@ def _configuration_problems(checker: JointPathChecker, poses: np.ndarray, con: i
     problems, good, branches_found = [], [], []
     for D in poses:
         X_WE = RigidTransform(matrices_from_dual_quaternion(np.asarray(D)[None])[0])
-        try:
-            branches = initial_configuration_candidates(X_WE, X_WB=checker.X_WB, scene=checker.scene, con=con,
-                                                        method="closed_form")
-        except UnreachableConfigurationError:
+        branches = checker.branches(X_WE)
+        if not branches:
             problems.append(("reach", "reach", "no inverse-kinematics solution reaches it"))
             continue
         for branch in branches:
@@ -201,6 +200,22 @@ def _pan_only_rows(checker: JointPathChecker) -> np.ndarray:
     return np.flatnonzero(same)
 
 
+# Per checker: its pan-only rows and the pan tables computed (by the exact configuration
+# whose pan turns), which trials of a task with a fixed con_1 share.
+_PAN_MEMOS: "weakref.WeakKeyDictionary[JointPathChecker, dict]" = weakref.WeakKeyDictionary()
+
+
+def _pan_table(scene, q: np.ndarray, rows: np.ndarray, pans: np.ndarray) -> np.ndarray:
+    """The signed distances (pans, rows, boxes) of the pan-only ``rows`` with ``q``'s
+    shoulder_pan turned to each of ``pans``."""
+    q = np.array(q, dtype=float)
+    table = []
+    for pan in pans:
+        q[0] = pan
+        table.append(scene.signed_distances(q)[rows])
+    return np.array(table)
+
+
 def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
                         good_branches: list[list[np.ndarray]]) -> list[InfeasibleSegment]:
     """Spans con_i -> con_(i+1) that every way of turning shoulder_pan blocks.
@@ -215,17 +230,15 @@ def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
     scene = checker.scene
     if not scene.geometry.keep_out_geometry_ids or any(not good for good in good_branches):
         return []
-    rows = _pan_only_rows(checker)
+    memo = _PAN_MEMOS.setdefault(checker, {})
+    if "rows" not in memo:
+        memo["rows"], memo["tables"] = _pan_only_rows(checker), ExactMemo(maxsize=8)
+    rows = memo["rows"]
     if not len(rows):
         return []
     pans = np.linspace(0.0, 2 * np.pi, PAN_GRID, endpoint=False)
     q = np.array(good_branches[0][0], dtype=float)
-    table = []  # (PAN_GRID,) least distance of a pan-only shape, and which shape/box
-    for pan in pans:
-        q[0] = pan
-        distances = scene.signed_distances(q)[rows]
-        table.append(distances)
-    table = np.array(table)  # (PAN_GRID, rows, boxes)
+    table = memo["tables"].get(exact_key(q), lambda: _pan_table(scene, q, rows, pans))
     least = table.reshape(PAN_GRID, -1).min(axis=1)
     clearance = checker.limits.clearance_m
     segments = []

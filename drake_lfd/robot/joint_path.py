@@ -57,6 +57,7 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
+from drake_lfd.core.exact_memo import ExactMemo
 from drake_lfd.core.timing import TimedPlan
 from drake_lfd.robot.differential_ik_law import (
     DEFAULT_POSITION_GAIN,
@@ -210,6 +211,9 @@ def ur5e_reach_m(X_tool0_E: RigidTransform | None = None) -> float:
 # to three branches and their windings).
 _REMEMBERED_FOLLOWS = 4
 _REMEMBERED_STARTS = 16
+# Poses whose inverse-kinematics branches a checker remembers (a 20-configuration task's
+# candidates are a few hundred).
+_REMEMBERED_POSES = 1024
 
 
 @dataclasses.dataclass(frozen=True)
@@ -274,7 +278,7 @@ class JointPathChecker:
         self.scene = scene
         self.X_WB = RigidTransform() if X_WB is None else RigidTransform(X_WB)
         self.limits = limits
-        self._start_cache: dict[bytes, list[np.ndarray]] = {}
+        self._branches = ExactMemo(maxsize=_REMEMBERED_POSES)
         # The last follows from each start, newest first; the starts least recently used first.
         self._follows: OrderedDict[bytes, list[_FollowRecord]] = OrderedDict()
         plant = scene.plant
@@ -525,20 +529,27 @@ class JointPathChecker:
         return best, best_pair, float(np.min(wake - moved))
 
     # -- candidates ----------------------------------------------------------------------
+    def branches(self, X_WE: RigidTransform) -> list:
+        """Every inverse-kinematics branch reaching ``X_WE``, best first
+        (:func:`~drake_lfd.robot.initial_ik.initial_configuration_candidates` in closed
+        form, with each branch's clearance); empty when none. Remembered per pose (the
+        last :data:`_REMEMBERED_POSES`): the start and the refusal pre-check ask for the
+        same poses, and trials of a task for its fixed configurations."""
+        key = np.ascontiguousarray(X_WE.GetAsMatrix34()).tobytes()
+
+        def solve():
+            try:
+                return initial_configuration_candidates(X_WE, X_WB=self.X_WB, scene=self.scene, method="closed_form")
+            except UnreachableConfigurationError:
+                return []
+        return self._branches.get(key, solve)
+
     def start_candidates(self, X_WE: RigidTransform) -> list[np.ndarray]:
         """The inverse-kinematics branches reaching ``X_WE`` at the clearance from every
         obstacle and shell, best first (the closed loop's initial configuration is the
-        first; cached per pose). Empty when none."""
-        key = np.ascontiguousarray(X_WE.GetAsMatrix34()).tobytes()
-        if key not in self._start_cache:
-            try:
-                found = initial_configuration_candidates(X_WE, X_WB=self.X_WB, scene=self.scene,
-                                                         method="closed_form")
-            except UnreachableConfigurationError:
-                found = []
-            clearance = self.limits.clearance_m
-            self._start_cache[key] = [c.q for c in found if c.collision_free and c.min_distance_m >= clearance]
-        return self._start_cache[key]
+        first). Empty when none."""
+        clearance = self.limits.clearance_m
+        return [c.q for c in self.branches(X_WE) if c.collision_free and c.min_distance_m >= clearance]
 
     def follow_from_candidates(self, plan: TimedPlan, starts: Sequence[np.ndarray], *,
                                max_starts: int = 3) -> JointPath:
