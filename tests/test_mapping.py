@@ -203,6 +203,23 @@ def test_twist_turns_the_path_about_the_task_direction():
                   - translation_from_dual_quaternion(plain.poses[50])).max() > 0.01
 
 
+@pytest.mark.parametrize("indices", [[0], [5, 30, 60], [10, 40, 70, 90]])
+def test_all_twists_at_once_equal_one_mapping_per_twist_to_the_bit(indices):
+    demo = curvy_demo()
+    rng = np.random.default_rng(len(indices))
+    task = demo.poses[indices + [99]].copy()
+    task[1:-1, 4:] += 0.0  # the demo's own anchors, then a moved goal
+    goal = dual_quaternion_from_euler_zyx(translation_from_dual_quaternion(task[-1]) + rng.normal(scale=0.05, size=3),
+                                          [0.3, -0.2, 0.1])
+    task[-1] = goal
+    twists = np.radians(np.arange(0.0, 360.0, 30.0))
+    together = mut.map_segment_twists(demo.poses, allocation_at(indices), task, twists)
+    assert together.shape[0] == len(twists)
+    for twist, poses in zip(twists, together):
+        one = mut.map_segment(demo.poses, allocation_at(indices), task, twist_rad=float(twist))
+        assert np.array_equal(one.poses, poses)
+
+
 def test_bad_arguments():
     demo = curvy_demo()
     with pytest.raises(ValueError):

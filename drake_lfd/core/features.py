@@ -372,6 +372,7 @@ def poses_from_deltas(deltas: ArrayLike, D_final: ArrayLike) -> NDArray[np.float
 
 
 def _poses_from_deltas(deltas, D_final):
-    """:func:`poses_from_deltas` without the input checks, ``D_final`` a float array."""
+    """:func:`poses_from_deltas` without the input checks, ``D_final`` a float array;
+    ``deltas`` (..., N - 1, 8) may carry leading dimensions."""
     D = dual_quaternion_multiply(D_final, dual_quaternion_conjugate(deltas))
-    return np.concatenate([D, D_final[None]], axis=0)
+    return np.concatenate([D, np.broadcast_to(D_final, D.shape[:-2] + (1, 8))], axis=-2)

@@ -73,7 +73,8 @@ from drake_lfd.core.similarity import MIN_TRANSLATION_M
 if TYPE_CHECKING:
     from drake_lfd.core.similarity import Allocation
 
-__all__ = ["MappedSegment", "alignment_from_translations", "mapped_poses_from_deltas", "map_segment"]
+__all__ = ["MappedSegment", "alignment_from_translations", "mapped_poses_from_deltas", "map_segment",
+           "map_segment_twists"]
 
 _IDENTITY_QUATERNION = np.array([1.0, 0.0, 0.0, 0.0])
 _IDENTITY_QUATERNION.flags.writeable = False  # shared by every caller: returned as a copy
@@ -267,23 +268,10 @@ def map_segment(
     if not np.isfinite(twist_rad):
         raise ValueError(f"twist_rad must be finite, got {twist_rad}")
 
-    suffix = demo_poses[indices[0]:]
-    deltas = _deltas_from_poses(suffix)
-    t_demo = translation_from_dual_quaternion(deltas[0])
-    t_task = translation_from_dual_quaternion(dual_quaternion_relative(task_poses[0], task_poses[-1]))
+    suffix, deltas, t_demo, t_task, scale = _segment_parts(demo_poses, indices, task_poses, min_length_m)
     alignment = alignment_from_translations(t_demo, t_task, twist_rad, min_length_m)
-    demo_length = np.linalg.norm(t_demo)
-    scale = 1.0 if demo_length < min_length_m else float(np.linalg.norm(t_task) / demo_length)
-    uncorrected = _mapped_poses_from_deltas(deltas, task_poses[-1], alignment, scale)
-
     anchors = np.append(indices - indices[0], len(suffix) - 1)
-    residuals = np.concatenate(
-        [dual_quaternion_relative(uncorrected[anchors[:-1]], task_poses[:-1]), IDENTITY_DUAL_QUATERNION[None]]
-    )
-    corrections = _corrections_between_anchors(residuals, anchors)
-    # At an anchor the correction is the residual itself (ScLERP at s = 0 is exact), so
-    # the pose there is M (x) M* (x) T = T to rounding, with T's sign.
-    poses = dual_quaternion_multiply(uncorrected, corrections)
+    uncorrected, corrections, poses = _mapped_through_anchors(deltas, task_poses, alignment, scale, anchors)
 
     _, correction_angle = axis_angle_from_quaternion(corrections[:, :4])
     correction_distance = np.linalg.norm(translation_from_dual_quaternion(corrections), axis=-1)
@@ -299,9 +287,56 @@ def map_segment(
     )
 
 
+def _segment_parts(demo_poses, indices, task_poses, min_length_m):
+    """What a mapping needs besides its alignment: the demo suffix, its deltas, the
+    demo's and the task's first translations and the scale (Eq. 23)."""
+    suffix = demo_poses[indices[0]:]
+    deltas = _deltas_from_poses(suffix)
+    t_demo = translation_from_dual_quaternion(deltas[0])
+    t_task = translation_from_dual_quaternion(dual_quaternion_relative(task_poses[0], task_poses[-1]))
+    demo_length = np.linalg.norm(t_demo)
+    scale = 1.0 if demo_length < min_length_m else float(np.linalg.norm(t_task) / demo_length)
+    return suffix, deltas, t_demo, t_task, scale
+
+
+def _mapped_through_anchors(deltas, task_poses, alignment, scale, anchors):
+    """The mapped poses before and after the correction through the anchors, and the
+    corrections, for one alignment (4,) or several (a, 1, 4): (..., N, 8) each."""
+    uncorrected = _mapped_poses_from_deltas(deltas, task_poses[-1], alignment, scale)
+    lead = uncorrected.shape[:-2]
+    residuals = np.concatenate(
+        [dual_quaternion_relative(uncorrected[..., anchors[:-1], :], task_poses[:-1]),
+         np.broadcast_to(IDENTITY_DUAL_QUATERNION, lead + (1, 8))], axis=-2)
+    corrections = _corrections_between_anchors(residuals, anchors)
+    # At an anchor the correction is the residual itself (ScLERP at s = 0 is exact), so
+    # the pose there is M (x) M* (x) T = T to rounding, with T's sign.
+    return uncorrected, corrections, dual_quaternion_multiply(uncorrected, corrections)
+
+
+def map_segment_twists(demo_poses: ArrayLike, allocation: Allocation, task_poses: ArrayLike,
+                       twists_rad: ArrayLike, min_length_m: float = MIN_TRANSLATION_M) -> NDArray[np.float64]:
+    """The poses of :func:`map_segment` for each of the twists ``twists_rad`` (a,) at once:
+    shape (a, N, 8), the same numbers as one call per twist (the alignments differ, the
+    rest is shared). Inputs as :func:`map_segment`'s, unchecked."""
+    demo_poses, task_poses = np.asarray(demo_poses, dtype=float), np.asarray(task_poses, dtype=float)
+    indices = np.asarray(allocation.indices, dtype=int)
+    suffix, deltas, t_demo, t_task, scale = _segment_parts(demo_poses, indices, task_poses, min_length_m)
+    base = alignment_from_translations(t_demo, t_task, 0.0, min_length_m)
+    twists = np.asarray(twists_rad, dtype=float)
+    alignments = np.broadcast_to(base, twists.shape + (4,)).copy()
+    task_length = np.linalg.norm(t_task)
+    turning = twists != 0.0
+    if task_length >= min_length_m and turning.any():
+        alignments[turning] = quaternion_multiply(
+            quaternion_from_axis_angle(t_task / task_length, twists[turning]), base)
+    anchors = np.append(indices - indices[0], len(suffix) - 1)
+    return _mapped_through_anchors(deltas, task_poses, alignments[:, None, :], scale, anchors)[2]
+
+
 def _corrections_between_anchors(residuals, anchors):
-    """ScLERP residuals (p + 1, 8) between anchor indices (p + 1,) -> (anchors[-1] + 1, 8)."""
+    """ScLERP residuals (..., p + 1, 8) between anchor indices (p + 1,) -> (...,
+    anchors[-1] + 1, 8)."""
     samples = np.arange(anchors[-1] + 1)
     interval = np.clip(np.searchsorted(anchors, samples, side="right") - 1, 0, len(anchors) - 2)
     fraction = (samples - anchors[interval]) / (anchors[interval + 1] - anchors[interval])
-    return dual_quaternion_sclerp(residuals[interval], residuals[interval + 1], fraction)
+    return dual_quaternion_sclerp(residuals[..., interval, :], residuals[..., interval + 1, :], fraction)

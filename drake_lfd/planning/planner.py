@@ -14,6 +14,7 @@ Not for: reading files (``tasks.py``, ``library.py``) or running the robot.
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from typing import Mapping
 
 import numpy as np
@@ -31,12 +32,13 @@ from drake_lfd.planning.executable import InfeasibleSegment, search_executable
 from drake_lfd.planning.problem_size import check_problem_size
 from drake_lfd.planning.refusals import blocked_configurations, distinct_reasons
 from drake_lfd.planning.stretching import solve_within_stretch_bound
+from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.features import Feature
 from drake_lfd.core.fidelity import FidelityWeights, check_cost_mode
-from drake_lfd.core.mapping import map_segment
+from drake_lfd.core.mapping import map_segment, map_segment_twists
 from drake_lfd.planning.q_learning import DEFAULT_REFINE_EPISODES, QPolicy, plan_q
 from drake_lfd.core.similarity import Tolerances
-from drake_lfd.core.tasks import ConcreteTask, angle_candidates, stops_of
+from drake_lfd.core.tasks import Box, ConcreteTask, angle_candidates, stops_of
 from drake_lfd.robot.joint_path import JointPath, JointPathChecker, ur5e_reach_m
 from drake_lfd.robot.path_timing import TimingError, retime_plan
 from drake_lfd.core.timing import (
@@ -286,18 +288,37 @@ def twist_order(feature_poses, allocation, task_poses, keep_out=(), floor_z=None
     """
     if not keep_out and floor_z is None:
         return [0.0]
-    scored = []
-    for order, twist in enumerate(TWIST_CANDIDATES_RAD):
-        mapped = map_segment(feature_poses, allocation, task_poses, twist_rad=float(twist))
-        distance = _clearances(mapped.poses, keep_out, floor_z, points_E)
-        shortfall = round(float(np.sum(np.maximum(CLEARANCE_GOAL_M - distance, 0.0))), 6)
-        turn = round(float(min(twist, 2 * np.pi - twist)), 9)
-        scored.append((shortfall, turn, order, float(twist)))
-        if twist == 0.0 and shortfall == 0.0 and (limit is None or limit <= 1):
-            break
+
+    def shortfalls(poses: np.ndarray) -> list[float]:
+        """Each path's (a, N, 8) total shortfall below the clearance goal, rounded."""
+        distance = _clearances(poses.reshape(-1, 8), keep_out, floor_z, points_E).reshape(len(poses), -1)
+        return [round(float(np.sum(np.maximum(CLEARANCE_GOAL_M - row, 0.0))), 6) for row in distance]
+
+    twists = TWIST_CANDIDATES_RAD
+    if limit is None or limit <= 1:  # twist 0 alone, when its path is clear
+        first = shortfalls(map_segment(feature_poses, allocation, task_poses, twist_rad=0.0).poses[None])[0]
+        if first == 0.0:
+            return [0.0]
+    # Every twist at once: the same poses as one mapping per twist (map_segment_twists).
+    scored = [(shortfall, round(float(min(twist, 2 * np.pi - twist)), 9), order, float(twist))
+              for order, (twist, shortfall) in enumerate(zip(
+                  twists, shortfalls(map_segment_twists(feature_poses, allocation, task_poses, twists))))]
     scored.sort()
     twists = [twist for *_, twist in scored]
     return twists if limit is None else twists[:limit]
+
+
+# Twist orders by their exact inputs, per joint-path checker (one per scene, kept across
+# trials as the check's own reuse is): trials of a task whose spans do not depend on its
+# variables (filling and pouring's first two) order their twists once.
+_TWIST_ORDERS: "weakref.WeakKeyDictionary[JointPathChecker, ExactMemo]" = weakref.WeakKeyDictionary()
+
+
+def _clearance_scene_key(keep_out, floor_z) -> tuple:
+    """What :func:`twist_order` reads of the boxes and the floor, exactly."""
+    boxes = tuple(exact_key(box.centre, box.size, box.rotation) for box in keep_out)
+    floor = exact_key(floor_z.centre, floor_z.size, floor_z.rotation) if isinstance(floor_z, Box) else floor_z
+    return boxes, floor
 
 
 def map_span_clear(feature_poses, allocation, task_poses, keep_out=(), floor_z=None, points_E=None,
@@ -450,6 +471,10 @@ def plan_task(
     points_E = tool_clearance_points(task.X_tool0_E) if clearance_points_E is None else clearance_points_E
 
     feature_list = list(features.values())
+    scene_key = _clearance_scene_key(keep_out, floor_z)
+    # With a checker (built once per scene), the twist orders of earlier plans in it.
+    scene_twists = ExactMemo(maxsize=1) if checker is None else _TWIST_ORDERS.setdefault(
+        checker, ExactMemo(maxsize=256))
     span_memo: dict = {}
     twist_memo: dict = {}
 
@@ -469,8 +494,11 @@ def plan_task(
         key = (step, first, limit)
         if key not in twist_memo:
             span, task_poses = span_poses(step, first)
-            twist_memo[key] = twist_order(feature_list[step.demo].poses, span.allocation, task_poses, keep_out,
-                                          floor_z, points_E, limit=limit)
+            feature_poses = feature_list[step.demo].poses
+            exact = exact_key(feature_poses, np.asarray(span.allocation.indices), task_poses, scene_key, points_E,
+                              limit)
+            twist_memo[key] = scene_twists.get(exact, lambda: twist_order(
+                feature_poses, span.allocation, task_poses, keep_out, floor_z, points_E, limit=limit))
         return twist_memo[key]
 
     def compose(steps, overrides=None):
