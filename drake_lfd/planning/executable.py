@@ -32,6 +32,9 @@ import copy
 import dataclasses
 from collections.abc import Callable
 
+from pydrake.math import RigidTransform
+
+from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
 from drake_lfd.planning.composition import CompositionProblem, Step
 from drake_lfd.robot.joint_path import Blocker, JointPath, JointPathChecker
 
@@ -172,7 +175,7 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
             ``start_index`` (with its windings); None when there is no such branch."""
             composed = compose(steps, {i: current[s] for i, s in enumerate(steps) if s in current})
             timed = composed[0]
-            starts = checker.start_candidates(timed.X_WE_list()[0])
+            starts = checker.start_candidates(RigidTransform(matrices_from_dual_quaternion(timed.poses[:1])[0]))
             if len(starts) <= start_index:
                 return composed, None
             path = checker.follow_from_candidates(timed, starts[start_index:start_index + 1])

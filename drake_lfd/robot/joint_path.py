@@ -373,6 +373,8 @@ class JointPathChecker:
             checkpoints = {c: point for c, point in record.checkpoints.items() if c <= checkpoint.con}
         blocker = None
         lower, upper = self._lower.tolist(), self._upper.tolist()
+        # The desired spatial velocity at every step, in one call (the same values).
+        V_all = velocity.vector_values(np.minimum(np.arange(first, steps + 1) * dt, duration))
         for k in range(first, steps + 1):
             if k in checkpoint_at and k > first:
                 c = checkpoint_at[k]
@@ -423,7 +425,7 @@ class JointPathChecker:
             # Tracking: along the path, and at each critical configuration when due.
             tau = min(t, duration)
             X_desired = trajectory.GetPose(tau)
-            V_desired = velocity.value(tau)[:, 0] if t < duration else np.zeros(6)
+            V_desired = V_all[:, k - first] if t < duration else np.zeros(6)
             # The step's law evaluates E's pose error at q: the tracking error.
             v = law.joint_velocity(q, q, X_desired, V_desired)
             e = law.last_pose_error.tolist()
