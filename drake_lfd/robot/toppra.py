@@ -191,13 +191,17 @@ def solve_parametrization(c: StageConstraints, s_dot_start: float = 0.0,
         beta_lo = np.concatenate([np.where(lo1, -h[:, None] * inv1, 0.0), zeros], axis=1)
         gamma_lo = np.concatenate([zeros, np.where(lo2, h[:, None] * inv2, 0.0)], axis=1)
 
-    K0, K1 = np.empty(N + 1), np.empty(N + 1)
-    K0[N] = K1[N] = s_dot_end**2
+    # The sequential passes run on Python floats (a few dozen numbers a stage: cheaper
+    # than numpy calls; the same operations, so the same numbers).
+    au, bu, cu = alpha_up.tolist(), beta_up.tolist(), gamma_up.tolist()
+    al, bl, cl = alpha_lo.tolist(), beta_lo.tolist(), gamma_lo.tolist()
     static_lo_list, static_hi_list = static_lo.tolist(), static_hi.tolist()
+    K0, K1 = [0.0] * (N + 1), [0.0] * (N + 1)
+    K0[N] = K1[N] = s_dot_end**2
     for k in range(N - 1, -1, -1):
         next_lo, next_hi = K0[k + 1], K1[k + 1]
-        hi = min(static_hi_list[k], float(np.min(alpha_up[k] + beta_up[k] * next_lo + gamma_up[k] * next_hi)))
-        lo = max(static_lo_list[k], float(np.max(alpha_lo[k] + beta_lo[k] * next_lo + gamma_lo[k] * next_hi)))
+        hi = min(static_hi_list[k], min([a + b * next_lo + c * next_hi for a, b, c in zip(au[k], bu[k], cu[k])]))
+        lo = max(static_lo_list[k], max([a + b * next_lo + c * next_hi for a, b, c in zip(al[k], bl[k], cl[k])]))
         if math.isnan(lo) or math.isnan(hi) or lo > hi + _slack(hi):
             return None
         lo = min(lo, hi)
@@ -207,18 +211,21 @@ def solve_parametrization(c: StageConstraints, s_dot_start: float = 0.0,
         return None
 
     # Forward pass: the largest u keeping every row and the next set.
-    x = np.empty(N + 1)
-    u = np.empty(N)
+    x = [0.0] * (N + 1)
+    u = [0.0] * N
     x[0] = x_start
     delta = np.diff(g)
+    P_rows, M_rows, p_rows, m_rows = P.tolist(), M.tolist(), p.tolist(), m.tolist()
+    h_list, delta_list = h.tolist(), delta.tolist()
     for k in range(N):
         xk = x[k]
-        u_up = min(float(np.min(P[k] + M[k] * xk)), (K1[k + 1] - xk) * h[k])
-        u_lo = max(float(np.max(p[k] + m[k] * xk)), (K0[k + 1] - xk) * h[k])
+        u_up = min(min([a + b * xk for a, b in zip(P_rows[k], M_rows[k])]), (K1[k + 1] - xk) * h_list[k])
+        u_lo = max(max([a + b * xk for a, b in zip(p_rows[k], m_rows[k])]), (K0[k + 1] - xk) * h_list[k])
         if math.isnan(u_up) or u_lo > u_up + _slack(u_up):
             return None
         u[k] = u_up
-        x[k + 1] = max(K0[k + 1], min(K1[k + 1], xk + 2.0 * delta[k] * u_up))
+        x[k + 1] = max(K0[k + 1], min(K1[k + 1], xk + 2.0 * delta_list[k] * u_up))
+    x, u = np.array(x), np.array(u)
     sd = np.sqrt(x)
     if np.any(np.isnan(sd)):
         return None
