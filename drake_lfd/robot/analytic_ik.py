@@ -5,7 +5,7 @@ wrist offset) reaches a pose in at most eight configurations, its inverse-kinema
 branches: shoulder_pan towards or away from the target (two roots of one equation),
 wrist_2 on either side (the sign of ``sin q5``) and the elbow up or down (the sign of
 ``sin q3``). :func:`ur5e_branches` solves for all of them from Universal Robots' DH
-table (the same as :mod:`drake_lfd.experiments.rederive`'s), the closed form of Hawkins,
+table, the closed form of Hawkins,
 "Analytic Inverse Kinematics for the Universal Robots UR-5/UR-10 Arms" (2013), in a few
 microseconds per pose instead of a nonlinear program per guess.
 
@@ -25,12 +25,15 @@ import math
 
 import numpy as np
 
-from drake_lfd.experiments.rederive import DH_A, DH_D
+__all__ = ["UR5E_DH_D", "UR5E_DH_A", "ur5e_branches"]
 
-__all__ = ["ur5e_branches"]
-
-_D1, _D4, _D5, _D6 = float(DH_D[0]), float(DH_D[3]), float(DH_D[4]), float(DH_D[5])
-_A2, _A3 = float(DH_A[1]), float(DH_A[2])
+# Universal Robots' UR5e DH parameters (m): link offsets d and lengths a (standard DH;
+# alpha = pi/2, 0, 0, pi/2, -pi/2, 0). The URDF's forward kinematics equals the table's
+# to 2e-16 (tests/test_analytic_ik.py).
+UR5E_DH_D = (0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996)
+UR5E_DH_A = (0.0, -0.425, -0.3922, 0.0, 0.0, 0.0)
+_D1, _D4, _D5, _D6 = UR5E_DH_D[0], UR5E_DH_D[3], UR5E_DH_D[4], UR5E_DH_D[5]
+_A2, _A3 = UR5E_DH_A[1], UR5E_DH_A[2]
 # Below this |sin q5| wrist_1 and wrist_3 are treated as one free joint.
 _ALIGNED = 1e-10
 

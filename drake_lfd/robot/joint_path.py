@@ -66,6 +66,7 @@ from drake_lfd.robot.differential_ik_law import (
     DifferentialIKLaw,
     pose_error,
 )
+from drake_lfd.robot.analytic_ik import UR5E_DH_A, UR5E_DH_D
 from drake_lfd.robot.initial_ik import UnreachableConfigurationError, initial_configuration_candidates
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, UR5E_JOINT_NAMES, UR5eKinematics
 from drake_lfd.robot.motion_bounds import motion_bounds
@@ -84,7 +85,8 @@ __all__ = [
 REASONS = ("reach", "joint_limit", "singularity", "collision")
 
 # UR5e DH parameters (m): the shoulder singularity's distance and the reach bound.
-_A2, _A3, _D1, _D4, _D5, _D6 = -0.425, -0.3922, 0.1625, 0.1333, 0.0997, 0.0996
+_A2, _A3 = UR5E_DH_A[1], UR5E_DH_A[2]
+_D1, _D4, _D5, _D6 = UR5E_DH_D[0], UR5E_DH_D[3], UR5E_DH_D[4], UR5E_DH_D[5]
 # Links standing on the table: never checked against it.
 _ON_TABLE_LINKS = ("base_link", "shoulder_link")
 
