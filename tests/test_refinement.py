@@ -152,14 +152,16 @@ def _critical_pose_errors(result, composed):
 
 
 def test_an_iterate_at_the_iteration_limit_refines_when_it_passes_the_checks(transferring, refined):
-    """Measured on this plan: SNOPT converges after 28 evaluations, within the default
-    100 major iterations; stopped at 10 (SNOPT info 32) its last iterate is feasible and
+    """Measured on this plan: SNOPT converges after 23 evaluations, within the default
+    100 major iterations; stopped at 8 (SNOPT info 32) its last iterate is feasible and
     the project's checks accept it; stopped at 100 iterations in all (SNOPT info 31) its
-    iterates are slower than the composed plan and are refused."""
+    iterates are slower than the composed plan and are refused. (With the start from
+    the IK program, 1e-5 rad from the exact branch, SNOPT took 28 evaluations and the
+    stop was at 10.)"""
     composed, checker, scene = transferring
     assert refined.refinement.refined and not refined.refinement.budget_spent
     stopped = refine_plan(composed, checker, scene=scene,
-                          options=RefinementOptions(budget=SolverBudget(major_iterations=10)))
+                          options=RefinementOptions(budget=SolverBudget(major_iterations=8)))
     report = stopped.refinement
     assert report.budget_spent and report.status == "refined", report.reason
     assert report.evaluations < refined.refinement.evaluations
