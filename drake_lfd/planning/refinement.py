@@ -471,7 +471,7 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     # answer deterministic.
     rounds = (count,) if options.num_control_points else (count, count + count // 2)
     for attempt in rounds:
-        best, failures = None, []
+        failures, candidates = {}, []
         line_guess = fit_bspline(*lines, attempt, rest_ends=True, pins=pins)
         composed_guess = fit_bspline(s_path, q_path, attempt, rest_ends=True, pins=pins) if method == "refine" else None
         for label, guess, duration, first in _starts(method, composed_guess, line_guess, limits, solve, path_bounds):
@@ -479,29 +479,30 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
             if solved.safety_stopped:
                 return dataclasses.replace(result, refinement=report("failed", f"error: {solved.status}", solve_time))
             if solved.trajectory is None:
-                failures.append((label, f"optimizer: {solved.status}", None))
+                failures[label] = (f"optimizer: {solved.status}", None)
                 continue
             work["budget_spent"] = work["budget_spent"] or solved.budget_spent
-            checked = _check_motion(result, checker, scene, solved, fractions, limits, options, method)
+            candidates.append((label, solved, _sample_motion(checker, scene, solved, fractions, limits, options)))
+        # The shortest motion first: the first that passes every check is the round's
+        # shortest that does (the others need no check).
+        for label, solved, sampled in sorted(candidates, key=lambda c: c[2].plan.duration):
+            checked = _check_motion(result, checker, scene, sampled, options, method)
             if checked.reason is None:
-                if best is None or checked.plan.duration < best[0].plan.duration:
-                    best = (checked, solved)
-                continue
+                work["budget_spent"] = solved.budget_spent
+                return dataclasses.replace(result, timed=checked.plan, joint_path=checked.followed,
+                                           refinement=report("refined", "", solve_time, checked.plan.duration,
+                                                             checked.position, checked.rotation, checked.fractions))
             reason = checked.reason
             if solved.budget_spent:
                 reason = f"{reason}; SNOPT's last iterate at its {solved.status}"
             elif solved.nearly_feasible:
                 reason = f"{reason}; SNOPT's last iterate, {solved.status}"
-            failures.append((label, reason, checked))
-        if best is not None:
-            checked, solved = best
-            work["budget_spent"] = solved.budget_spent
-            return dataclasses.replace(result, timed=checked.plan, joint_path=checked.followed,
-                                       refinement=report("refined", "", solve_time, checked.plan.duration,
-                                                         checked.position, checked.rotation, checked.fractions))
-    # The first start's failure first (the composed path's, for ``refine``), then the others'.
-    reason = "; ".join([failures[0][1]] + [f"{_START_NAMES[label]}: {text}" for label, text, _ in failures[1:]])
-    checked = failures[0][2]
+            failures[label] = (reason, checked)
+    # Each start's failure in the starts' order (the composed path's first, for ``refine``).
+    ordered = [label for label in _START_NAMES if label in failures] or list(failures)
+    reason = "; ".join([failures[ordered[0]][0]] + [f"{_START_NAMES[label]}: {failures[label][0]}"
+                                                    for label in ordered[1:]])
+    checked = failures[ordered[0]][1]
     if checked is None:
         return dataclasses.replace(result, refinement=report("failed", reason, solve_time))
     return dataclasses.replace(result, refinement=report("failed", reason, solve_time, checked.plan.duration,
@@ -559,21 +560,38 @@ class _Checked:
     fractions: np.ndarray | None = None
 
 
-def _check_motion(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene, solved,
-                  fractions: np.ndarray, limits: TrajectoryLimits, options: RefinementOptions,
-                  method: str) -> _Checked:
-    """Samples the solver's motion at the controller's period (module docstring), follows
-    it with ``checker`` and checks it: executable, every critical configuration within
-    ``check_fraction`` of the success tolerances, the path constraints, the tube
-    (``refine``) and shorter than the composed plan."""
-    timed, dt = result.timed, checker.time_step
-    t, q, X, indices, s_samples = sample_trajectory(scene, solved.trajectory, fractions, time_step=dt,
+@dataclasses.dataclass(frozen=True)
+class _Sampled:
+    """A solved motion sampled at the controller's period: the plan, its joints, poses,
+    critical indices and path fractions."""
+
+    plan: TimedPlan
+    q: np.ndarray
+    X: list
+    indices: list
+    fractions: np.ndarray
+
+
+def _sample_motion(checker: JointPathChecker, scene: OptimizationScene, solved, fractions: np.ndarray,
+                   limits: TrajectoryLimits, options: RefinementOptions) -> _Sampled:
+    """Samples the solver's motion at the controller's period (module docstring)."""
+    t, q, X, indices, s_samples = sample_trajectory(scene, solved.trajectory, fractions, time_step=checker.time_step,
                                                     tool_speed_m_s=limits.tool_speed_m_s,
                                                     tool_acceleration_m_s2=limits.tool_acceleration_m_s2,
                                                     pass_speed_m_s=options.pass_speed_m_s,
                                                     pass_acceleration_m_s2=options.pass_acceleration_m_s2)
     poses = dual_quaternion_from_matrices(np.array([x.GetAsMatrix4() for x in X]))
-    plan = TimedPlan(t, poses, tuple(indices))
+    return _Sampled(TimedPlan(t, poses, tuple(indices)), q, X, indices, s_samples)
+
+
+def _check_motion(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene, sampled: _Sampled,
+                  options: RefinementOptions, method: str) -> _Checked:
+    """Follows a sampled motion with ``checker`` and checks it: executable, every
+    critical configuration within ``check_fraction`` of the success tolerances, the
+    path constraints, the tube (``refine``) and shorter than the composed plan."""
+    timed = result.timed
+    plan, q, X, indices, s_samples = sampled.plan, sampled.q, sampled.X, sampled.indices, sampled.fractions
+    t = plan.times
     followed = checker.follow(plan, q[0])
     duration = plan.duration
 

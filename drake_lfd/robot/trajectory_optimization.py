@@ -32,8 +32,8 @@ at an iteration limit its last iterate is returned for the caller to check.
 A scene remembers its last solutions by the program's exact inputs (the guess, its
 duration, the targets, bounds, limits and budget, every number by its bits;
 :mod:`~drake_lfd.core.exact_memo`): SNOPT keeps nothing between solves, so solving the
-same program again gives the same bits, and a remembered answer is that answer (only
-its wall time, a measurement, is the first solve's). Every assembling trial (a task
+same program again gives the same bits, and a remembered answer is that answer (but
+for its wall time, a measurement: 0). Every assembling trial (a task
 without variables) asks the same programs; each worker solves them once.
 
 Constraints at path fractions hold at those samples only: callers sample densely and
@@ -295,7 +295,8 @@ class OptimizedTrajectory:
     status : str
         The solver's result (``SNOPT info 1``, ``... (SNOPT info 13)``), for a reason.
     solve_time_s : float
-        Wall time of the solve (a measurement only: nothing depends on it).
+        Wall time of the solve (a measurement only: nothing depends on it; 0 when the
+        scene remembered the answer).
     evaluations : int
         Evaluations of the program SNOPT made (deterministic, like the answer).
     budget_spent : bool
@@ -503,15 +504,23 @@ def optimize_joint_trajectory(
 
     A program this scene solved before (the same inputs to the bit) is answered from
     ``scene.solutions``: the same answer, ``evaluations`` included (SNOPT's work for the
-    program), with the first solve's wall time. A solve the safety stop ended is not
-    remembered.
+    program), with ``solve_time_s`` 0 (no solve ran). A solve the safety stop ended is
+    not remembered.
     """
     key = _program_key(guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget)
+    solved = []
+
+    def solve():
+        solved.append(_solve(scene, guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget))
+        if solved[0].safety_stopped:  # it depends on the clock: not remembered
+            raise _Unremembered(solved[0])
+        return solved[0]
+
     try:
-        return scene.solutions.get(key, lambda: _remembered(_solve(scene, guess, guess_duration_s, targets, bounds,
-                                                                   clearance_samples, limits, budget)))
+        answer = scene.solutions.get(key, solve)
     except _Unremembered as stopped:
         return stopped.answer
+    return answer if solved else dataclasses.replace(answer, solve_time_s=0.0)
 
 
 class _Unremembered(Exception):
@@ -520,12 +529,6 @@ class _Unremembered(Exception):
     def __init__(self, answer: OptimizedTrajectory):
         super().__init__(answer.status)
         self.answer = answer
-
-
-def _remembered(answer: OptimizedTrajectory) -> OptimizedTrajectory:
-    if answer.safety_stopped:  # it depends on the clock
-        raise _Unremembered(answer)
-    return answer
 
 
 def _numbers(values) -> tuple:
