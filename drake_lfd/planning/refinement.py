@@ -31,6 +31,7 @@ Not for: composing demonstrations (``planner.py``) or the Drake program itself
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 
@@ -466,29 +467,23 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     # Up to two rounds, the second with 1.5 times the control points (a spline too stiff
     # for the tube is a usual cause of an infeasible program; and a different program is
     # a fresh chance where SNOPT ended in a poor local solution); in each, the program
-    # from each start of ``_starts``: the round's shortest motion that passes every check
-    # refines the plan. A fixed number of solves, so the work stays bounded and the
-    # answer deterministic.
+    # from each start of ``_starts`` in turn, until a motion passes every check. A fixed
+    # number of solves at most, so the work stays bounded and the answer deterministic.
     rounds = (count,) if options.num_control_points else (count, count + count // 2)
     for attempt in rounds:
-        failures, candidates = {}, []
+        failures = []
         line_guess = fit_bspline(*lines, attempt, rest_ends=True, pins=pins)
-        composed_guess = fit_bspline(s_path, q_path, attempt, rest_ends=True, pins=pins) if method == "refine" else None
-        for label, guess, duration, first in _starts(method, composed_guess, line_guess, limits, solve, path_bounds):
+        composed = functools.partial(fit_bspline, s_path, q_path, attempt, rest_ends=True, pins=pins)
+        for label, guess, duration, first in _starts(method, line_guess, composed, limits, solve, path_bounds):
             solved = first if guess is None else solve(guess, duration, bounds)
             if solved.safety_stopped:
                 return dataclasses.replace(result, refinement=report("failed", f"error: {solved.status}", solve_time))
             if solved.trajectory is None:
-                failures[label] = (f"optimizer: {solved.status}", None)
+                failures.append((label, f"optimizer: {solved.status}", None))
                 continue
-            work["budget_spent"] = work["budget_spent"] or solved.budget_spent
-            candidates.append((label, solved, _sample_motion(checker, scene, solved, fractions, limits, options)))
-        # The shortest motion first: the first that passes every check is the round's
-        # shortest that does (the others need no check).
-        for label, solved, sampled in sorted(candidates, key=lambda c: c[2].plan.duration):
-            checked = _check_motion(result, checker, scene, sampled, options, method)
+            work["budget_spent"] = solved.budget_spent
+            checked = _check_motion(result, checker, scene, solved, fractions, limits, options, method)
             if checked.reason is None:
-                work["budget_spent"] = solved.budget_spent
                 return dataclasses.replace(result, timed=checked.plan, joint_path=checked.followed,
                                            refinement=report("refined", "", solve_time, checked.plan.duration,
                                                              checked.position, checked.rotation, checked.fractions))
@@ -497,12 +492,11 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
                 reason = f"{reason}; SNOPT's last iterate at its {solved.status}"
             elif solved.nearly_feasible:
                 reason = f"{reason}; SNOPT's last iterate, {solved.status}"
-            failures[label] = (reason, checked)
-    # Each start's failure in the starts' order (the composed path's first, for ``refine``).
-    ordered = [label for label in _START_NAMES if label in failures] or list(failures)
-    reason = "; ".join([failures[ordered[0]][0]] + [f"{_START_NAMES[label]}: {failures[label][0]}"
-                                                    for label in ordered[1:]])
-    checked = failures[ordered[0]][1]
+            failures.append((label, reason, checked))
+    # The last round's failures, in the starts' order: the first as it is, each other one
+    # with the start it comes from.
+    reason = "; ".join([failures[0][1]] + [f"{_START_NAMES[label]}: {text}" for label, text, _ in failures[1:]])
+    checked = failures[0][2]
     if checked is None:
         return dataclasses.replace(result, refinement=report("failed", reason, solve_time))
     return dataclasses.replace(result, refinement=report("failed", reason, solve_time, checked.plan.duration,
@@ -510,34 +504,36 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
 
 
 # How a failure reason names the start it comes from (``_starts``).
-_START_NAMES = {"composed": "from the composed path", "plain motion": "from the plain program's motion"}
+_START_NAMES = {"plain motion": "from the plain program's motion", "composed": "from the composed path"}
 
 
-def _starts(method: str, composed_guess, line_guess, limits: TrajectoryLimits, solve, path_bounds):
-    """The program's starts, in order, as ``(label, guess, duration, None)``, or
-    ``(label, None, None, answer)`` when the solve that makes a start gave no motion
-    (``answer``: that solve's).
+def _starts(method: str, line_guess, composed_guess, limits: TrajectoryLimits, solve, path_bounds):
+    """The program's starts, in the order they are tried, as ``(label, guess, duration,
+    None)``, or ``(label, None, None, answer)`` when the solve that makes a start gave
+    no motion (``answer``: that solve's). Lazy: a start is made only when the ones
+    before it gave no motion that passed the checks.
 
     ``plain``: ``line_guess`` (straight joint-space lines through the composed path's
-    configurations at the critical configurations). ``refine``: first
-    ``composed_guess`` (the composed joint path), then the plain program's motion: the
-    program without the tube (the same limits, targets and path constraints), solved
-    from ``line_guess`` with ``solve(guess, duration, path_bounds)``. The composed path
-    alone lands in poor local solutions where the demonstrations detour: on assembling
-    (``paper6``) the tube program from it ended at a 4.60 s motion, from the plain
-    program's motion (3.62 s, which the tube hardly changes) at 3.66 s; on filling and
-    pouring (seed 4) 6.54 s against 4.28 s. Where the plain program's motion leaves the
-    tube's free space (transferring, seed 3: its tube solution struck a shell), the
-    composed path's start still refines."""
+    configurations at the critical configurations). ``refine``: first the plain
+    program's motion: the program without the tube (the same limits, targets and path
+    constraints), solved from ``line_guess`` with ``solve(guess, duration,
+    path_bounds)``; then the composed joint path (``composed_guess()``). From the
+    composed path SNOPT lands in poor local solutions where the demonstrations detour:
+    on assembling (``paper6``) the tube program from it ended at a 4.60 s motion, from
+    the plain program's motion (3.62 s, which the tube hardly changes) at 3.66 s; on
+    filling and pouring (seed 4) 6.54 s against 4.28 s. Where the plain program's
+    motion fails a check in the tube (transferring, seed 3: it struck a shell), the
+    composed path's start refines."""
     if method == "plain":
         yield "plain", line_guess, _duration_guess(line_guess, limits), None
         return
-    yield "composed", composed_guess, _duration_guess(composed_guess, limits), None
     plain = solve(line_guess, _duration_guess(line_guess, limits), path_bounds)
     if plain.trajectory is None:
         yield "plain motion", None, None, plain
     else:
         yield ("plain motion",) + _in_path_fraction(plain.trajectory) + (None,)
+    guess = composed_guess()
+    yield "composed", guess, _duration_guess(guess, limits), None
 
 
 def _in_path_fraction(trajectory: BsplineTrajectory) -> tuple[BsplineTrajectory, float]:
@@ -560,38 +556,21 @@ class _Checked:
     fractions: np.ndarray | None = None
 
 
-@dataclasses.dataclass(frozen=True)
-class _Sampled:
-    """A solved motion sampled at the controller's period: the plan, its joints, poses,
-    critical indices and path fractions."""
-
-    plan: TimedPlan
-    q: np.ndarray
-    X: list
-    indices: list
-    fractions: np.ndarray
-
-
-def _sample_motion(checker: JointPathChecker, scene: OptimizationScene, solved, fractions: np.ndarray,
-                   limits: TrajectoryLimits, options: RefinementOptions) -> _Sampled:
-    """Samples the solver's motion at the controller's period (module docstring)."""
-    t, q, X, indices, s_samples = sample_trajectory(scene, solved.trajectory, fractions, time_step=checker.time_step,
+def _check_motion(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene, solved,
+                  fractions: np.ndarray, limits: TrajectoryLimits, options: RefinementOptions,
+                  method: str) -> _Checked:
+    """Samples the solver's motion at the controller's period (module docstring), follows
+    it with ``checker`` and checks it: executable, every critical configuration within
+    ``check_fraction`` of the success tolerances, the path constraints, the tube
+    (``refine``) and shorter than the composed plan."""
+    timed, dt = result.timed, checker.time_step
+    t, q, X, indices, s_samples = sample_trajectory(scene, solved.trajectory, fractions, time_step=dt,
                                                     tool_speed_m_s=limits.tool_speed_m_s,
                                                     tool_acceleration_m_s2=limits.tool_acceleration_m_s2,
                                                     pass_speed_m_s=options.pass_speed_m_s,
                                                     pass_acceleration_m_s2=options.pass_acceleration_m_s2)
     poses = dual_quaternion_from_matrices(np.array([x.GetAsMatrix4() for x in X]))
-    return _Sampled(TimedPlan(t, poses, tuple(indices)), q, X, indices, s_samples)
-
-
-def _check_motion(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene, sampled: _Sampled,
-                  options: RefinementOptions, method: str) -> _Checked:
-    """Follows a sampled motion with ``checker`` and checks it: executable, every
-    critical configuration within ``check_fraction`` of the success tolerances, the
-    path constraints, the tube (``refine``) and shorter than the composed plan."""
-    timed = result.timed
-    plan, q, X, indices, s_samples = sampled.plan, sampled.q, sampled.X, sampled.indices, sampled.fractions
-    t = plan.times
+    plan = TimedPlan(t, poses, tuple(indices))
     followed = checker.follow(plan, q[0])
     duration = plan.duration
 
