@@ -221,6 +221,7 @@ def _statistics_lines(label: str, rows: list[dict]) -> list[str]:
             reasons[kind] = reasons.get(kind, 0) + 1
     ratios = [r["duration_s"] / r["plain_s"] for r in refined if math.isfinite(r["plain_s"])]
     totals = [r["total_s"] for r in rows]
+    afresh = [r["cpu_s"] for r in rows[1:] if not r["remembered"]]
     lines = [f"{label}: {len(refined)}/{len(rows)} refined ({sum(r['budget_spent'] for r in refined)} of them "
              f"SNOPT's iterate at its iteration limit); refinement time median {np.median(totals):.2f} s, max "
              f"{max(totals):.2f} s (solver median {np.median([r['solve_s'] for r in rows]):.2f} s; target: median "
@@ -228,9 +229,9 @@ def _statistics_lines(label: str, rows: list[dict]) -> list[str]:
              f"{max(r['cpu_s'] for r in rows):.2f} s; SNOPT evaluations median {np.median([r['evaluations'] for r in rows]):.0f}, max "
              f"{max(r['evaluations'] for r in rows)}",
              f"{label}: {sum(r['remembered'] for r in rows)} plans answered from the scene's memory of solved "
-             f"programs (the same inputs, the same bits); the first plan's CPU time {rows[0]['cpu_s']:.2f} s, the "
-             f"median of the others' solved afresh "
-             f"{np.median([r['cpu_s'] for r in rows if not r['remembered']][1:] or [math.nan]):.2f} s"]
+             f"programs (the same inputs, the same bits); the first plan's CPU time {rows[0]['cpu_s']:.2f} s, "
+             + (f"the median of the others solved afresh {np.median(afresh):.2f} s" if afresh else
+                "no other plan solved afresh")]
     if ratios:
         lines.append(f"{label}: refined / plain (full limits) duration over {len(ratios)} refined plans: median "
                      f"{np.median(ratios):.2f}, max {max(ratios):.2f} (target: median <= 1.2); refined mean "
