@@ -2,10 +2,11 @@
 the plain optimizer it is compared with.
 
 :func:`refine_plan` takes an executable composed plan (a :class:`PlanResult` with its
-joint path) and optimizes a joint trajectory seeded by it (docs/method.rst, Refinement
-by trajectory optimization): the composed joint path is the initial guess, each
-critical configuration is pinned at the path fraction where the composed plan reaches
-it, and the motion must stay in a tube around the mapped demonstrations (E within
+joint path) and optimizes a joint trajectory around it (docs/method.rst, Refinement
+by trajectory optimization): each critical configuration is pinned at the path
+fraction where the composed plan reaches it (its configuration there, on the composed
+joint path, fixes the IK branch), and the motion must stay in a tube around the mapped
+demonstrations (E within
 ``tube_position_m`` and ``tube_rotation_rad`` of the composed SE(3) path at the matching
 path fraction; within each span the fraction is matched by arc length), keep the task's
 path constraints, the joint limits, speed and acceleration bounds, the tool speed and the
@@ -14,8 +15,11 @@ is verified like any plan: sampled at the controller's period, timed as a
 :class:`~drake_lfd.core.timing.TimedPlan` (E's poses by forward kinematics, critical
 indices at the samples where each critical configuration is due) and followed by the
 :class:`~drake_lfd.robot.joint_path.JointPathChecker`; the path constraints and the
-tube are checked on the followed joint path. When the optimizer fails or any check
-fails, the unrefined plan stands and the report says why. The solve is bounded by
+tube are checked on the followed joint path. The tube program starts from the plain
+program's motion (the same program without the tube, from straight joint-space lines),
+and from the composed joint path where that start's motion fails a check
+(:func:`_starts`). When the optimizer fails or any check fails, the unrefined plan
+stands and the report says why. The solve is bounded by
 SNOPT's iteration counts (:class:`SolverBudget`), never by time, and the bounds are
 the task's ``timing:`` limits at its ``limit_fraction``: the same inputs give the same
 plan on any machine under any load.
@@ -197,7 +201,9 @@ class RefinementReport:
         Evaluations of the program by SNOPT, all attempts (the work done: the same on
         any machine).
     attempts : int
-        SNOPT solves (1, or 2 when the first found the program infeasible).
+        SNOPT solves: 2 (the plain program, then the tube program from its motion), 3
+        when the tube program also started from the composed path, up to 6 with a
+        second round (``plain``: 1 or 2).
     budget_spent : bool
         The motion is SNOPT's last iterate at its iteration limit (checked like a
         solution).
