@@ -36,17 +36,23 @@ import drake_lfd.planning.refinement as refinement_module
 SIMS = scenarios_directory()
 
 
-@pytest.fixture(scope="module")
-def transferring():
-    """The composed plan of transferring (seed 0), its checker and the program's scene."""
-    task = load_task(SIMS / "transferring.yaml")
-    trial = draw_trial(task, 0)
+def _composed(name: str, seed: int):
+    """The composed plan of paper task ``name`` (``paper5``) at trial ``seed``, its
+    checker and the program's scene."""
+    task = load_task(SIMS / f"{name}.yaml")
+    trial = draw_trial(task, seed)
     workcell = Workcell.of(trial)
     checker = joint_path_checker(workcell, task.simulation)
     result = plan_task(trial, library_features(Library.open("paper5")), floor_z=workcell.planner_floor,
                        checker=checker, cost="fidelity")
     assert result.planned and result.joint_path.executable
     return result, checker, OptimizationScene(workcell)
+
+
+@pytest.fixture(scope="module")
+def transferring():
+    """The composed plan of transferring (seed 0), its checker and the program's scene."""
+    return _composed("transferring", 0)
 
 
 @pytest.fixture(scope="module")
@@ -149,28 +155,12 @@ def test_the_refinement_is_the_same_bits_whatever_ran_before_it(transferring, re
 
 @pytest.fixture(scope="module")
 def transferring_3():
-    """The composed plan of transferring (seed 3), its checker and scene."""
-    task = load_task(SIMS / "transferring.yaml")
-    trial = draw_trial(task, 3)
-    workcell = Workcell.of(trial)
-    checker = joint_path_checker(workcell, task.simulation)
-    result = plan_task(trial, library_features(Library.open("paper5")), floor_z=workcell.planner_floor,
-                       checker=checker, cost="fidelity")
-    assert result.planned and result.joint_path.executable
-    return result, checker, OptimizationScene(workcell)
+    return _composed("transferring", 3)
 
 
 @pytest.fixture(scope="module")
 def filling():
-    """The composed plan of filling and pouring (seed 4), its checker and scene."""
-    task = load_task(SIMS / "filling_pouring.yaml")
-    trial = draw_trial(task, 4)
-    workcell = Workcell.of(trial)
-    checker = joint_path_checker(workcell, task.simulation)
-    result = plan_task(trial, library_features(Library.open("paper5")), floor_z=workcell.planner_floor,
-                       checker=checker, cost="fidelity")
-    assert result.planned and result.joint_path.executable
-    return result, checker, OptimizationScene(workcell)
+    return _composed("filling_pouring", 4)
 
 
 def test_the_plain_programs_motion_starts_the_tube_program(filling, monkeypatch):
