@@ -198,8 +198,8 @@ class RefinementReport:
         succeeded): with it an executed run is measured against the tube
         (:func:`tube_deviation`). Not in the JSON.
     evaluations : int
-        Evaluations of the program by SNOPT, all attempts (the work done: the same on
-        any machine).
+        Evaluations of the programs by SNOPT, all solves (the work done: the same on
+        any machine, and the same when the scene remembered a solve).
     attempts : int
         SNOPT solves: 2 (the plain program, then the tube program from its motion), 3
         when the tube program also started from the composed path, up to 6 with a
