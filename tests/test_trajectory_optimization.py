@@ -1,6 +1,6 @@
 """The trajectory-optimization program (``robot/trajectory_optimization.py``): the
 shoulder-singularity margin, which the joint-path check demands and the program must
-keep too."""
+keep too; the scene's memory of solved programs (the same bits as a fresh solve)."""
 
 import numpy as np
 import pytest
@@ -10,6 +10,7 @@ from drake_lfd.robot.trajectory_optimization import (
     SHOULDER_FRAME_NAME,
     WRIST_CENTRE_FRAME_NAME,
     OptimizationScene,
+    SolverBudget,
     TrajectoryLimits,
     fit_bspline,
     optimize_joint_trajectory,
@@ -59,3 +60,43 @@ def test_program_keeps_the_wrist_centre_off_the_shoulder_axis(scene):
                               for fraction in np.linspace(0.0, 1.0, 15))
     assert closest[0.0] > -0.12
     assert closest[0.15] <= -0.15 + 1e-5
+
+
+def _a_program(scene):
+    q_start = np.array([0.0, -2.0, 1.5, -1.5, 1.5, 0.0])
+    q_goal = np.array([1.0, -1.8, 1.3, -1.6, 1.4, 0.5])
+    s = np.linspace(0.0, 1.0, 21)
+    samples = np.array([np.interp(s, [0.0, 1.0], [q_start[j], q_goal[j]]) for j in range(6)]).T
+    return fit_bspline(s, samples, 8, rest_ends=True)
+
+
+def test_a_program_solved_before_is_answered_from_the_scenes_memory_with_the_same_bits():
+    scene = OptimizationScene(Workcell.make())
+    guess = _a_program(scene)
+    first = optimize_joint_trajectory(scene, guess, 2.0, clearance_samples=8)
+    assert first.trajectory is not None and first.solve_time_s > 0 and scene.solutions.misses == 1
+    again = optimize_joint_trajectory(scene, guess, 2.0, clearance_samples=8)
+    assert scene.solutions.hits == 1 and scene.solutions.misses == 1 and again.solve_time_s == 0.0
+    assert again.evaluations == first.evaluations > 0 and again.status == first.status
+    assert np.array_equal(np.hstack(again.trajectory.control_points()), np.hstack(first.trajectory.control_points()))
+    # Solved afresh (memory cleared), the same bits: what the memory returns is the solve's.
+    scene.solutions.clear()
+    fresh = optimize_joint_trajectory(scene, guess, 2.0, clearance_samples=8)
+    assert scene.solutions.misses == 2 and fresh.solve_time_s > 0
+    assert np.array_equal(np.hstack(fresh.trajectory.control_points()), np.hstack(first.trajectory.control_points()))
+    assert fresh.evaluations == first.evaluations
+    # One bit of difference in an input is another program.
+    optimize_joint_trajectory(scene, guess, np.nextafter(2.0, 3.0), clearance_samples=8)
+    optimize_joint_trajectory(scene, guess, 2.0, clearance_samples=8, limits=TrajectoryLimits(clearance_m=0.021))
+    assert scene.solutions.misses == 4 and scene.solutions.hits == 1
+
+
+def test_a_solve_the_safety_stop_ended_is_not_remembered():
+    scene = OptimizationScene(Workcell.make())
+    guess = _a_program(scene)
+    stopped = optimize_joint_trajectory(scene, guess, 2.0, clearance_samples=8,
+                                        budget=SolverBudget(safety_stop_s=0.0))
+    assert stopped.safety_stopped and stopped.trajectory is None
+    assert len(scene.solutions) == 0
+    again = optimize_joint_trajectory(scene, guess, 2.0, clearance_samples=8, budget=SolverBudget(safety_stop_s=0.0))
+    assert again.safety_stopped and scene.solutions.hits == 0 and scene.solutions.misses == 2

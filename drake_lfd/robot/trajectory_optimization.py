@@ -29,6 +29,13 @@ free duration ``T``; docs/method.rst, Refinement by trajectory optimization):
 SNOPT's work is bounded by iteration counts (:class:`SolverBudget`), never by a clock;
 at an iteration limit its last iterate is returned for the caller to check.
 
+A scene remembers its last solutions by the program's exact inputs (the guess, its
+duration, the targets, bounds, limits and budget, every number by its bits;
+:mod:`~drake_lfd.core.exact_memo`): SNOPT keeps nothing between solves, so solving the
+same program again gives the same bits, and a remembered answer is that answer (but
+for its wall time, a measurement: 0). Every assembling trial (a task
+without variables) asks the same programs; each worker solves them once.
+
 Constraints at path fractions hold at those samples only: callers sample densely and
 keep margins, and check the result (``planning/refinement.py`` runs the joint-path
 check on it). :func:`sample_trajectory` turns the solution into 10 ms samples, with
@@ -61,6 +68,7 @@ from pydrake.solvers import SnoptSolver, SolverOptions
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.trajectories import BsplineTrajectory
 
+from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.timing import TimingLimits
 from drake_lfd.robot.joint_path import shoulder_singularity_distance
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, add_ur5e
@@ -224,7 +232,13 @@ class OptimizationScene:
     Attributes
     ----------
     plant, scene_graph, model, diagram, context, plant_context, frame_E
+    solutions : ExactMemo
+        The last solutions of programs on this scene, by their exact inputs (module
+        docstring); ``solutions.clear()`` forgets them.
     """
+
+    #: Programs remembered per scene (a plan solves at most six).
+    REMEMBERED_SOLUTIONS = 16
 
     def __init__(self, workcell: Workcell):
         builder = DiagramBuilder()
@@ -252,6 +266,7 @@ class OptimizationScene:
         self.context = self.diagram.CreateDefaultContext()
         self.plant_context = self.plant.GetMyMutableContextFromRoot(self.context)
         self.frame_E = self.plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)
+        self.solutions = ExactMemo(maxsize=self.REMEMBERED_SOLUTIONS)
 
     def translational_jacobian(self, q: np.ndarray) -> np.ndarray:
         """d p_WE / d v at configuration ``q`` (6,): (3, 6)."""
@@ -280,7 +295,8 @@ class OptimizedTrajectory:
     status : str
         The solver's result (``SNOPT info 1``, ``... (SNOPT info 13)``), for a reason.
     solve_time_s : float
-        Wall time of the solve (a measurement only: nothing depends on it).
+        Wall time of the solve (a measurement only: nothing depends on it; 0 when the
+        scene remembered the answer).
     evaluations : int
         Evaluations of the program SNOPT made (deterministic, like the answer).
     budget_spent : bool
@@ -485,7 +501,73 @@ def optimize_joint_trajectory(
         ``Time limit`` option, so the safety stop is an exception raised in a
         visualization callback (called at each evaluation of the program), which Drake
         turns into SNOPT's "terminated during function evaluation".
+
+    A program this scene solved before (the same inputs to the bit) is answered from
+    ``scene.solutions``: the same answer, ``evaluations`` included (SNOPT's work for the
+    program), with ``solve_time_s`` 0 (no solve ran). A solve the safety stop ended is
+    not remembered.
     """
+    key = _program_key(guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget)
+    solved = []
+
+    def solve():
+        solved.append(_solve(scene, guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget))
+        if solved[0].safety_stopped:  # it depends on the clock: not remembered
+            raise _Unremembered(solved[0])
+        return solved[0]
+
+    try:
+        answer = scene.solutions.get(key, solve)
+    except _Unremembered as stopped:
+        return stopped.answer
+    return answer if solved else dataclasses.replace(answer, solve_time_s=0.0)
+
+
+class _Unremembered(Exception):
+    """Carries an answer out of the memo without it being remembered."""
+
+    def __init__(self, answer: OptimizedTrajectory):
+        super().__init__(answer.status)
+        self.answer = answer
+
+
+def _numbers(values) -> tuple:
+    """The exact key of a sequence of numbers, arrays, transforms or Nones: each one's
+    shape (None for None) and all their float64 bits (so ``-0.0`` is not ``0.0``)."""
+    shapes, parts = [], []
+    for value in values:
+        if value is None:
+            shapes.append(None)
+            continue
+        if isinstance(value, RigidTransform):
+            value = value.GetAsMatrix4()
+        elif isinstance(value, RotationMatrix):
+            value = value.matrix()
+        array = np.asarray(value, dtype=np.float64)
+        shapes.append(array.shape)
+        parts.append(array.ravel())
+    return (tuple(shapes),) + exact_key(np.concatenate(parts) if parts else np.zeros(0))
+
+
+def _program_key(guess: BsplineTrajectory, guess_duration_s: float, targets: Sequence[PoseTarget],
+                 bounds: Sequence[PoseBound], clearance_samples: int, limits: TrajectoryLimits,
+                 budget: SolverBudget) -> tuple:
+    """Everything :func:`_solve` reads besides the scene, exactly."""
+    fields = [guess.basis().order(), np.asarray(guess.basis().knots()), np.hstack(guess.control_points()),
+              guess_duration_s, clearance_samples, len(targets), len(bounds)]
+    for target in targets:
+        fields += [target.s, target.X_WE, target.position_tolerance_m, target.rotation_tolerance_rad,
+                   target.pass_speed_m_s, target.q_nominal]
+    for bound in bounds:
+        fields += [bound.s, bound.p_W, bound.radius_m, bound.R_WE, bound.angle_rad]
+    fields += list(dataclasses.astuple(limits)) + list(dataclasses.astuple(budget))
+    return _numbers(fields)
+
+
+def _solve(scene: OptimizationScene, guess: BsplineTrajectory, guess_duration_s: float,
+           targets: Sequence[PoseTarget], bounds: Sequence[PoseBound], clearance_samples: int,
+           limits: TrajectoryLimits, budget: SolverBudget) -> OptimizedTrajectory:
+    """:func:`optimize_joint_trajectory` without the memo."""
     plant, context, frame_E = scene.plant, scene.plant_context, scene.frame_E
     world = plant.world_frame()
     n = plant.num_positions()
