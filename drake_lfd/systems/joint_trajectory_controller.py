@@ -5,40 +5,60 @@ one the differential-IK law commands, sampled every controller period), and its 
 path is that path's forward kinematics. :class:`JointTrajectoryController` tracks it
 with no Python in the 100 Hz loop: a subsystem Diagram of pydrake primitives::
 
-    TrajectorySource(q_d(t + h), qdot_d(t + h)) --\
-                                                   Multiplexer -> MatrixGain (dt v) -> Saturation
-    q_measured -----------------------------------/                     (joint speed limits)
-        -> LinearSystem (discrete, period dt: the command integrator) -> Saturation (position limits)
-        -> q_command
+    TrajectorySource(w_k: the path's feed-forward step and dt K q_d, per period) --\
+                                                      Multiplexer -> MatrixGain (dt v) -> Saturation
+    q_measured --------------------------------------/                     (joint speed limits)
+        -> LinearSystem (discrete, period dt, no feed-through: the command integrator)
+        -> Saturation (position limits) -> q_command
 
 with the same law as the Python controller (``differential_ik.py``), written in joint space::
 
-    v_k = qdot_d + K (q_d - q_measured),    |v_k,j| <= fraction * vmax_j
-    q_command,k = q_command,k-1 + dt v_k     (Eq. 37-38's Euler step)
+    dt v_k = (q_d(t_k + 2 dt) - q_d(t_k + dt)) + dt K (q_d(t_k) - q_measured(t_k)),
+             |v_k,j| <= fraction * vmax_j
+    q_command,k+1 = q_command,k + dt v_k     (Eq. 37-38's Euler step)
 
 For small errors ``J^-1 (X_WE_desired [-] X_WE(q_measured)) = q_d - q_measured`` to first
 order, so this is the task-space law's feedback (gain K = 20 /s, integrated on the
-command side: integral action on the tracking error) with the feed-forward ``J^-1 V_d``
-of a path that already is the law's. The integrator is a discrete ``LinearSystem``
-(``x <- x + dt v``) whose output ``y = x + dt v`` feeds through, updated at the instants
-the drive samples the command, so the drive takes the command computed at that very
-instant. The station's plant steps as a discrete update (unsampled output ports), so
-the integrator's update at ``t_k`` sees the positions of ``t_k``, as the Python
-controller does 0.1 ms earlier. (With Drake's sampled output ports the plant's step is
-an unrestricted update, applied before the discrete updates of the same instant: the
-integrator then sees the positions of ``t_k + h``, ``h`` the plant step, and the desired
-trajectory is read ``h`` ahead, ``lead_s``; without that lead the arm lags the plan by
-4.9 ms, 0.8 mm rms on the 10 s benchmark plan.) Limits: the commanded joint speeds are clipped per joint to
+command side: integral action on the tracking error) with the feed-forward of a path that
+already is the law's, as the path's own step over a period (so open loop the command is
+the path, sample for sample). Everything but the measurement is known before the run, so
+``w_k`` is computed then, one value per controller instant (``set_trajectory``), and held
+between them.
+
+The integrator is a discrete ``LinearSystem`` (``x <- x + dt v`` at the instants the drive
+samples the command) whose output is its state, so the drive holds the command between
+updates and the controller's systems are evaluated once a period, at the update, not at
+every plant step (with the output fed through, ``y = x + dt v``, as before, every 5 ms
+plant step evaluated the whole chain again with that step's measurement, for a command
+that moved between the drive's samples: the loop cost 1.25x the station driven along
+the same joint path; now 1.0-1.05x, ``benchmarks/bench_pipeline.py``). The update at
+``t_k`` sees the positions of ``t_k`` (the station's plant steps as a discrete update,
+simultaneous with this one) and its command takes effect from the next plant step, so
+the feed-forward is the path's step one period ahead, as the Python controller targets
+the pose due one period later. On the 10 s benchmark plan (``benchmarks/bench_closed_loop.py``)
+the lead of the feed-forward step, in periods, gives (path max / rms, at the critical
+configurations, mm)::
+
+    lead       0           0.25        0.5         0.75        1           1.5
+    tracking   1.46/0.27   1.24/0.24   1.03/0.21   0.84/0.18   0.72/0.17   0.69/0.17
+    at cons    0.082       0.073       0.062       0.041       0.024       0.160
+
+against 0.93 / 0.17 / 0.060 with the fed-through output. The feedback compares the path
+at the measurement's own time: a quarter period either way leaves 0.42-0.45 mm rms.
+(With Drake's sampled output ports the plant's step is an unrestricted update, applied
+before the discrete updates of the same instant: the integrator then sees the positions
+of ``t_k + h``, ``h`` the plant step, and the feedback compares them with the path at
+``t_k + h``, ``lead_s``.) Limits: the commanded joint speeds are clipped per joint to
 ``velocity_limit_fraction`` of the UR5e's limits and the command to the joint position
 limits (the Python law scales the whole motion instead; plans are timed within 0.9 of
 the limits, so on the paper's tasks neither binds).
 
 The desired joint trajectory is a cubic Hermite spline through the path's samples with
-central-difference velocities. It is
-a property of the System (``TrajectorySource.UpdateTrajectory``), set per run by
-``closed_loop.py`` before simulating; :func:`joint_trajectory_of_plan` makes it, from the
-plan's checked joint path, or (a plan made without the check, or given as an SE(3)
-motion) by following the plan kinematically with the controller's law.
+central-difference velocities. It is set per run by ``closed_loop.py`` before simulating
+(``set_trajectory``: the source's ``UpdateTrajectory``, a property of the System);
+:func:`joint_trajectory_of_plan` makes it, from the plan's checked joint path, or (a plan
+made without the check, or given as an SE(3) motion) by following the plan kinematically
+with the controller's law.
 
 Not for: the task-space Python controller (``differential_ik.py``, the paper's
 baseline), the drive (``diagrams/station.py``).
@@ -176,21 +196,24 @@ class JointTrajectoryController(Diagram):
         self.time_step = float(time_step)
         self.position_gain = float(position_gain)
         builder = DiagramBuilder()
-        # A placeholder until a run sets its trajectory: hold zero.
+        # The run's w_k (module docstring), held between controller instants; a
+        # placeholder until a run sets its trajectory: zero.
         self._source = builder.AddNamedSystem("joint_trajectory", TrajectorySource(
-            PiecewisePolynomial(np.zeros((n, 1))), output_derivative_order=1, zero_derivatives_beyond_limits=True))
-        mux = builder.AddNamedSystem("desired_and_measured", Multiplexer([2 * n, n]))
+            PiecewisePolynomial(np.zeros((n, 1)))))
+        self._trajectory = PiecewisePolynomial(np.zeros((n, 1)))
+        mux = builder.AddNamedSystem("desired_and_measured", Multiplexer([n, n]))
         identity = np.eye(n)
         K, dt = self.position_gain, self.time_step
-        # dt * v = dt * (K q_d + qdot_d - K q_measured): one step of the command.
+        # dt * v = w_k - dt K q_measured: one step of the command.
         step = builder.AddNamedSystem("feed_forward_and_feedback", MatrixGain(
-            dt * np.hstack([K * identity, identity, -K * identity])))
+            np.hstack([identity, -dt * K * identity])))
         speed_limit = builder.AddNamedSystem("joint_speed_limits", Saturation(
             -dt * np.asarray(velocity_limits, dtype=float), dt * np.asarray(velocity_limits, dtype=float)))
-        # The command integrator: x <- x + dt v every period, output y = x + dt v (fed
-        # through: the drive samples the command of this very instant).
+        # The command integrator: x <- x + dt v every period, output x (no feed-through:
+        # the drive holds it until the next update, and nothing upstream is evaluated
+        # between updates).
         self._command = builder.AddNamedSystem("command_integrator", LinearSystem(
-            A=identity, B=identity, C=identity, D=identity, time_period=dt))
+            A=identity, B=identity, C=identity, D=np.zeros((n, n)), time_period=dt))
         position_limit = builder.AddNamedSystem("joint_position_limits", Saturation(
             np.asarray(position_lower, dtype=float), np.asarray(position_upper, dtype=float)))
         builder.Connect(self._source.get_output_port(), mux.get_input_port(0))
@@ -213,11 +236,22 @@ class JointTrajectoryController(Diagram):
                    **kwargs)
 
     def set_trajectory(self, trajectory: PiecewisePolynomial) -> None:
-        """The desired joint trajectory (simulation time), held before and after it."""
-        trajectory = trajectory.Clone()
-        if self.lead_s:
-            trajectory.shiftRight(-self.lead_s)
-        self._source.UpdateTrajectory(trajectory)
+        """The desired joint trajectory (simulation time, from 0), held before and after it.
+
+        Sets the source's ``w_k`` at every controller instant ``t_k = k dt`` up to the
+        trajectory's end (held after it), each held over ``[t_k - dt/2, t_k + dt/2)`` so
+        the update at ``t_k`` reads it whatever the rounding of ``t_k``.
+        """
+        self._trajectory = trajectory.Clone()
+        dt, K = self.time_step, self.position_gain
+        t = dt * np.arange(int(math.ceil(trajectory.end_time() / dt)) + 3)
+
+        def q_d(times):  # (m, n), held before the start and after the end
+            return trajectory.vector_values(np.clip(times, trajectory.start_time(), trajectory.end_time())).T
+
+        w = q_d(t + 2.0 * dt) - q_d(t + dt) + dt * K * q_d(t + self.lead_s)
+        breaks = np.concatenate([t - 0.5 * dt, [t[-1] + 0.5 * dt]])
+        self._source.UpdateTrajectory(PiecewisePolynomial.ZeroOrderHold(breaks, np.vstack([w, w[-1:]]).T))
 
     def set_initial_command(self, root_context: Context, q) -> None:
         """Sets the command integrator's state to ``q`` (6,), e.g. the initial positions."""
@@ -226,8 +260,8 @@ class JointTrajectoryController(Diagram):
 
     def desired_positions(self, root_context: Context) -> np.ndarray:
         """q_d at the context's time, (6,)."""
-        n = self.q_measured_input_port.size()
-        return self._source.get_output_port().Eval(self._source.GetMyContextFromRoot(root_context))[:n].copy()
+        t = np.clip(root_context.get_time(), self._trajectory.start_time(), self._trajectory.end_time())
+        return self._trajectory.value(t)[:, 0].copy()
 
 
 def law_for_plant(plant, model, frame_E, config) -> DifferentialIKLaw:
