@@ -52,7 +52,7 @@ from drake_lfd.diagrams.plan_markers import draw_plan
 from drake_lfd.robot.initial_ik import InitialConfiguration, solve_initial_configuration
 from drake_lfd.robot.kinematics import NUM_JOINTS, UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene
-from drake_lfd.systems.joint_trajectory_controller import joint_trajectory_of_plan
+from drake_lfd.systems.joint_trajectory_controller import joint_path_of_plan
 from drake_lfd.systems.shell_monitor import BoxClearance
 
 # The controller of runs whose task changes while the arm moves (replanning).
@@ -350,7 +350,7 @@ class ClosedLoopRunner:
         q_initial = np.asarray(q_initial, dtype=float)
         station.set_initial_positions(context, q_initial)
         if pipeline.compiled:
-            pipeline.controller.set_trajectory(joint_trajectory_of_plan(scheduled, q_initial, pipeline.law))
+            pipeline.controller.set_path(*joint_path_of_plan(scheduled, q_initial, pipeline.law))
             pipeline.controller.set_initial_command(context, q_initial)
         pipeline.logger.FindMutableLog(context).Clear()
         visualizer = station.visualizer

@@ -22,7 +22,7 @@ order, so this is the task-space law's feedback (gain K = 20 /s, integrated on t
 command side: integral action on the tracking error) with the feed-forward of a path that
 already is the law's, as the path's own step over a period (so open loop the command is
 the path, sample for sample). Everything but the measurement is known before the run, so
-``w_k`` is computed then, one value per controller instant (``set_trajectory``), and held
+``w_k`` is computed then, one value per controller instant (``set_path``), and held
 between them.
 
 The integrator is a discrete ``LinearSystem`` (``x <- x + dt v`` at the instants the drive
@@ -53,12 +53,14 @@ of ``t_k + h``, ``h`` the plant step, and the feedback compares them with the pa
 limits (the Python law scales the whole motion instead; plans are timed within 0.9 of
 the limits, so on the paper's tasks neither binds).
 
-The desired joint trajectory is a cubic Hermite spline through the path's samples with
-central-difference velocities. It is set per run by ``closed_loop.py`` before simulating
-(``set_trajectory``: the source's ``UpdateTrajectory``, a property of the System);
-:func:`joint_trajectory_of_plan` makes it, from the plan's checked joint path, or (a plan
-made without the check, or given as an SE(3) motion) by following the plan kinematically
-with the controller's law.
+The desired joint path is set per run by ``closed_loop.py`` before simulating
+(``set_path``: the source's ``UpdateTrajectory``, a property of the System), as samples at
+the controller instants: :func:`joint_path_of_plan` gives them, the plan's checked joint
+path, or (a plan made without the check, or given as an SE(3) motion) the path the
+controller's law takes following the plan kinematically. Only those samples are read, so
+no spline is built for a run (building a cubic ``PiecewisePolynomial`` through a 7 s
+path's samples cost 3 ms); :func:`joint_trajectory_of_plan` is the path as a cubic Hermite
+spline, for plotting or driving a bare station.
 
 Not for: the task-space Python controller (``differential_ik.py``, the paper's
 baseline), the drive (``diagrams/station.py``).
@@ -78,7 +80,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.differential_ik_law import DEFAULT_POSITION_GAIN, DEFAULT_TIME_STEP_S, DifferentialIKLaw
 
-__all__ = ["JointTrajectoryController", "joint_trajectory_of_plan", "joint_spline", "law_for_plant",
+__all__ = ["JointTrajectoryController", "joint_path_of_plan", "joint_trajectory_of_plan", "joint_spline", "law_for_plant",
            "JOINT_PATH_AGREEMENT_M"]
 
 # A plan's joint path is used as it is when its forward kinematics meets the plan's
@@ -146,9 +148,10 @@ def _path_matches_plan(scheduled: ScheduledPlan, q_initial: np.ndarray, law: Dif
     return True
 
 
-def joint_trajectory_of_plan(scheduled: ScheduledPlan, q_initial: np.ndarray,
-                             law: DifferentialIKLaw) -> PiecewisePolynomial:
-    """The desired joint trajectory of a run, in simulation time.
+def joint_path_of_plan(scheduled: ScheduledPlan, q_initial: np.ndarray,
+                       law: DifferentialIKLaw) -> tuple[np.ndarray, np.ndarray]:
+    """The desired joint path of a run, one sample per controller period: simulation
+    times t (m,) and positions q (m, 6).
 
     The plan's checked joint path when it starts at ``q_initial`` and still belongs to
     the plan (its forward kinematics meets the critical configurations); otherwise the
@@ -158,8 +161,15 @@ def joint_trajectory_of_plan(scheduled: ScheduledPlan, q_initial: np.ndarray,
     q_initial = np.asarray(q_initial, dtype=float)
     if _path_matches_plan(scheduled, q_initial, law):
         path = scheduled.result.joint_path
-        return joint_spline(scheduled.start_time_s + np.asarray(path.t, dtype=float), path.q)
-    return joint_spline(*_follow(scheduled, q_initial, law))
+        return scheduled.start_time_s + np.asarray(path.t, dtype=float), np.asarray(path.q, dtype=float)
+    return _follow(scheduled, q_initial, law)
+
+
+def joint_trajectory_of_plan(scheduled: ScheduledPlan, q_initial: np.ndarray,
+                             law: DifferentialIKLaw) -> PiecewisePolynomial:
+    """:func:`joint_path_of_plan` as a :func:`joint_spline` (the desired joint trajectory
+    of a run between the samples too, for plotting or driving a station)."""
+    return joint_spline(*joint_path_of_plan(scheduled, q_initial, law))
 
 
 class JointTrajectoryController(Diagram):
@@ -200,7 +210,7 @@ class JointTrajectoryController(Diagram):
         # placeholder until a run sets its trajectory: zero.
         self._source = builder.AddNamedSystem("joint_trajectory", TrajectorySource(
             PiecewisePolynomial(np.zeros((n, 1)))))
-        self._trajectory = PiecewisePolynomial(np.zeros((n, 1)))
+        self._path = (np.zeros(1), np.zeros((1, n)))
         mux = builder.AddNamedSystem("desired_and_measured", Multiplexer([n, n]))
         identity = np.eye(n)
         K, dt = self.position_gain, self.time_step
@@ -235,23 +245,27 @@ class JointTrajectoryController(Diagram):
                    velocity_limits=law.velocity_limits, time_step=law.time_step, position_gain=law.position_gain,
                    **kwargs)
 
-    def set_trajectory(self, trajectory: PiecewisePolynomial) -> None:
-        """The desired joint trajectory (simulation time, from 0), held before and after it.
+    def set_path(self, t, q) -> None:
+        """The desired joint path: positions ``q`` (m, 6) at simulation times ``t`` (m,)
+        (increasing; :func:`joint_path_of_plan`), linear between samples, held before
+        the first and after the last.
 
         Sets the source's ``w_k`` at every controller instant ``t_k = k dt`` up to the
-        trajectory's end (held after it), each held over ``[t_k - dt/2, t_k + dt/2)`` so
-        the update at ``t_k`` reads it whatever the rounding of ``t_k``.
+        path's end (held after it), each held over ``[t_k - dt/2, t_k + dt/2)`` so the
+        update at ``t_k`` reads it whatever the rounding of ``t_k``. A path sampled at
+        the controller instants (a plan's) is read at its samples.
         """
-        self._trajectory = trajectory.Clone()
+        self._path = (np.array(t, dtype=float), np.array(q, dtype=float))
         dt, K = self.time_step, self.position_gain
-        t = dt * np.arange(int(math.ceil(trajectory.end_time() / dt)) + 3)
-
-        def q_d(times):  # (m, n), held before the start and after the end
-            return trajectory.vector_values(np.clip(times, trajectory.start_time(), trajectory.end_time())).T
-
-        w = q_d(t + 2.0 * dt) - q_d(t + dt) + dt * K * q_d(t + self.lead_s)
-        breaks = np.concatenate([t - 0.5 * dt, [t[-1] + 0.5 * dt]])
+        grid = dt * np.arange(int(math.ceil(self._path[0][-1] / dt)) + 3)
+        w = self._at(grid + 2.0 * dt) - self._at(grid + dt) + dt * K * self._at(grid + self.lead_s)
+        breaks = np.concatenate([grid - 0.5 * dt, [grid[-1] + 0.5 * dt]])
         self._source.UpdateTrajectory(PiecewisePolynomial.ZeroOrderHold(breaks, np.vstack([w, w[-1:]]).T))
+
+    def _at(self, times) -> np.ndarray:
+        """The desired path at ``times`` (k,): (k, 6)."""
+        t, q = self._path
+        return np.column_stack([np.interp(times, t, q[:, j]) for j in range(q.shape[1])])
 
     def set_initial_command(self, root_context: Context, q) -> None:
         """Sets the command integrator's state to ``q`` (6,), e.g. the initial positions."""
@@ -260,8 +274,7 @@ class JointTrajectoryController(Diagram):
 
     def desired_positions(self, root_context: Context) -> np.ndarray:
         """q_d at the context's time, (6,)."""
-        t = np.clip(root_context.get_time(), self._trajectory.start_time(), self._trajectory.end_time())
-        return self._trajectory.value(t)[:, 0].copy()
+        return self._at([root_context.get_time()])[0]
 
 
 def law_for_plant(plant, model, frame_E, config) -> DifferentialIKLaw:
