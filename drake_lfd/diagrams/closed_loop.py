@@ -370,14 +370,6 @@ class ClosedLoopRunner:
         plant, model = station.plant, station.model
         plant_context = plant.GetMyContextFromRoot(context)
         stopped_early, stop_reason = False, ""
-        logger_context = pipeline.logger.GetMyContextFromRoot(context)
-
-        def measure_log():
-            # The shell monitor measures the joint-state log, a batch at a time.
-            if pipeline.monitor.measures_log:
-                log = pipeline.logger.GetLog(logger_context)
-                pipeline.monitor.measure_log(context, log.sample_times(), log.data()[:NUM_JOINTS].T)
-
         critical_errors = []
         num_cons = len(scheduled.timed.critical_indices)
         changes = sorted(task_changes, key=lambda change: change[0])
@@ -395,7 +387,6 @@ class ClosedLoopRunner:
                     break
                 target = min(t_due, changes[0][0]) if changes else t_due
                 status = simulator.AdvanceTo(target)
-                measure_log()
                 if status.reason() == status.ReturnReason.kReachedTerminationCondition:
                     stopped_early, stop_reason = True, status.message()
             if stopped_early:
@@ -406,7 +397,10 @@ class ClosedLoopRunner:
             q = plant.GetPositions(plant_context, model).copy()
             position, rotation = _pose_errors(self.kinematics.X_WE(q), X_WE_desired)
             critical_errors.append(CriticalError(con, t_due, position, rotation, q))
-        measure_log()  # the samples since the last batch
+        if pipeline.monitor.measures_log:
+            # The shell monitor measures the run's joint-state log, in one batch.
+            log = pipeline.logger.GetLog(pipeline.logger.GetMyContextFromRoot(context))
+            pipeline.monitor.measure_log(context, log.sample_times(), log.data()[:NUM_JOINTS].T)
         wall_time_s, cpu_time_s = time.perf_counter() - wall_start, time.process_time() - cpu_start
         scheduled = pipeline.plan_output_port.Eval(context)
 
