@@ -335,7 +335,6 @@ class ClosedLoopRunner:
         if scheduled is None or not scheduled.planned:
             return scheduled, None
         context = simulator.get_mutable_context()
-        X_WE_start = scheduled.X_WE_desired(0.0)
         initial_configuration = None
         joint_path = scheduled.result.joint_path
         if q_initial is None and joint_path is not None:
@@ -344,7 +343,7 @@ class ClosedLoopRunner:
             q_initial = joint_path.q[0]
         if q_initial is None:
             initial_configuration = solve_initial_configuration(
-                X_WE_start, X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
+                scheduled.X_WE_desired(0.0), X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
                 obstacles=station.obstacles, safety_shells=station.safety_shells, scene=self._ik_scene)
             q_initial = initial_configuration.q
         q_initial = np.asarray(q_initial, dtype=float)
@@ -393,7 +392,7 @@ class ClosedLoopRunner:
                 nan6 = np.full(NUM_JOINTS, np.nan)
                 critical_errors.append(CriticalError(con, t_due, math.nan, math.nan, nan6, reached=False))
                 continue
-            X_WE_desired = scheduled.X_WE_desired(t_due)  # the plan's pose of con_i (a knot)
+            X_WE_desired = scheduled.timed.X_WE(scheduled.timed.critical_indices[con - 1])  # con_i's pose
             q = plant.GetPositions(plant_context, model).copy()
             position, rotation = _pose_errors(self.kinematics.X_WE(q), X_WE_desired)
             critical_errors.append(CriticalError(con, t_due, position, rotation, q))

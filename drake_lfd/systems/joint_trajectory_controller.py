@@ -142,7 +142,7 @@ def _path_matches_plan(scheduled: ScheduledPlan, q_initial: np.ndarray, law: Dif
         k = int(round(timed.times[i] / law.time_step))
         if k >= len(path.q):
             return False
-        X_path, X_plan = law.X_WE(path.q[k]), scheduled.X_WE_desired(scheduled.start_time_s + timed.times[i])
+        X_path, X_plan = law.X_WE(path.q[k]), timed.X_WE(i)
         if np.linalg.norm(X_path.translation() - X_plan.translation()) > tolerance:
             return False
     return True
