@@ -392,7 +392,7 @@ class ClosedLoopRunner:
                 nan6 = np.full(NUM_JOINTS, np.nan)
                 critical_errors.append(CriticalError(con, t_due, math.nan, math.nan, nan6, reached=False))
                 continue
-            X_WE_desired = scheduled.timed.X_WE(scheduled.timed.critical_indices[con - 1])  # con_i's pose
+            X_WE_desired = scheduled.timed.X_WE_critical()[con - 1]  # the plan's pose of con_i
             q = plant.GetPositions(plant_context, model).copy()
             position, rotation = _pose_errors(self.kinematics.X_WE(q), X_WE_desired)
             critical_errors.append(CriticalError(con, t_due, position, rotation, q))

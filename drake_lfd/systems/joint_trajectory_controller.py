@@ -138,12 +138,11 @@ def _path_matches_plan(scheduled: ScheduledPlan, q_initial: np.ndarray, law: Dif
         return False
     timed = scheduled.timed
     tolerance = JOINT_PATH_AGREEMENT_M + 0.5 * law.time_step * 1.0
-    for i in timed.critical_indices:
+    for i, X_plan in zip(timed.critical_indices, timed.X_WE_critical()):
         k = int(round(timed.times[i] / law.time_step))
         if k >= len(path.q):
             return False
-        X_path, X_plan = law.X_WE(path.q[k]), timed.X_WE(i)
-        if np.linalg.norm(X_path.translation() - X_plan.translation()) > tolerance:
+        if np.linalg.norm(law.X_WE(path.q[k]).translation() - X_plan.translation()) > tolerance:
             return False
     return True
 
