@@ -83,8 +83,8 @@ from pydrake.trajectories import PiecewisePolynomial
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.differential_ik_law import DEFAULT_POSITION_GAIN, DEFAULT_TIME_STEP_S, DifferentialIKLaw
 
-__all__ = ["JointTrajectoryController", "joint_path_of_plan", "joint_trajectory_of_plan", "joint_spline", "law_for_plant",
-           "JOINT_PATH_AGREEMENT_M"]
+__all__ = ["JointTrajectoryController", "joint_path_of_plan", "joint_trajectory_of_plan", "joint_spline",
+           "law_for_plant", "JOINT_PATH_AGREEMENT_M"]
 
 # A plan's joint path is used as it is when its forward kinematics meets the plan's
 # critical configurations this closely (a path that no longer belongs to the plan, for
