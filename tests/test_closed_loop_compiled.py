@@ -168,3 +168,16 @@ def test_the_compiled_feedback_pulls_the_command_towards_the_path_at_the_clipped
     context.SetDiscreteState(controller.EvalUniquePeriodicDiscreteUpdate(context).value())
     step = controller.q_command_output_port.Eval(context) - before
     np.testing.assert_allclose(step, dt * law.velocity_limits, rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_with_sampled_output_ports_the_feedback_compares_the_path_a_plant_step_later():
+    # The plant's step then comes before the controller's update at the same instant: the
+    # measurement is of t + h, and the feedback compares it with the path at t + h.
+    plan = plan_through_joint_configurations([Q_HOME, Q_A, Q_B])
+    config = PipelineConfig()
+    config.station.sampled_output_ports = True
+    pipeline = build_pipeline(plan=plan, with_table=False, config=config)
+    assert pipeline.controller.lead_s == pipeline.station.time_step > 0.0
+    _, result = ClosedLoopRunner(pipeline).run(q_initial=Q_HOME)
+    assert max(e.position_m for e in result.critical_errors) < 1e-4
