@@ -3,9 +3,10 @@
 Run: ``python benchmarks/bench_closed_loop.py [--time-step 0.005] [--controller compiled]
 [--compare]`` (``--controller drake`` or ``pseudo_inverse``: the Python task-space
 controller). Prints simulated time, wall time and their ratio (target: at least 10x
-real time), the tracking errors (along the path and at the critical configurations),
-the closest approach to the safety shell, the largest joint speed as a fraction of the
-UR5e's limit, and the per-call cost of the pieces of the loop. ``--compare`` repeats
+real time), the same by the process's CPU time, the tracking errors (along the path and
+at the critical configurations), the closest approach to the safety shell, the largest
+joint speed as a fraction of the UR5e's limit, and the per-call cost of the pieces of
+the loop. ``--compare`` repeats
 the run for plant steps of 1, 2 and 4 ms, so the accuracy cost of a larger step is
 visible next to its speed.
 
@@ -24,9 +25,11 @@ Where the time went, and what was done (2-core machine, shared): a first measure
   ``DifferentialInverseKinematicsController`` runs open loop on its own command), so the
   default controller is built from pydrake primitives instead
   (``systems/joint_trajectory_controller.py``): the same law in joint space on the plan's
-  joint path, no Python at 100 Hz. On this plan it tracks 0.93 mm at most along the
-  path, 0.17 mm rms, 0.060 mm at the critical configurations, against 1.34 / 0.20 /
-  0.086 mm for the Python controller.
+  joint path, no Python at 100 Hz. On this plan it tracks 0.72 mm at most along the
+  path, 0.17 mm rms, 0.024 mm at the critical configurations, against 1.34 / 0.20 /
+  0.086 mm for the Python controller (0.93 / 0.17 / 0.060 mm while its command was fed
+  through to the drive and re-evaluated at every plant step; now the drive holds it
+  between the 10 ms updates, with the feed-forward one period ahead).
 - The monitor measures the joint log in batches (``systems/shell_monitor.py``); its
   figure below is one sample measured with every pair, for scale.
 - The monitor loops over pairs in plain Python (numpy's per-call overhead cost more
@@ -156,7 +159,8 @@ def run_once(plan, time_step, controller):
     critical_rotation = max(e.rotation_rad for e in result.critical_errors)
     print(
         f"plant step {1000 * time_step:.1f} ms, {controller}: sim {result.sim_time_s:.2f} s, wall "
-        f"{result.wall_time_s:.2f} s, {result.realtime_factor:.1f}x real time | path error max "
+        f"{result.wall_time_s:.2f} s, {result.realtime_factor:.1f}x real time (CPU {result.cpu_time_s:.2f} s, "
+        f"{result.sim_time_s / result.cpu_time_s:.1f}x) | path error max "
         f"{1000 * path_max:.2f} mm, rms {1000 * path_rms:.2f} mm, {math.degrees(rotation_max):.2f} deg | "
         f"critical max {1000 * critical_position:.3f} mm, {math.degrees(critical_rotation):.3f} deg | "
         f"shell clearance {1000 * result.min_shell_distance_m:.0f} mm | max joint speed "

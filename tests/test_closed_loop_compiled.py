@@ -113,3 +113,71 @@ def test_batched_motion_bounds_are_the_per_sample_bounds_to_the_bit_and_nondecre
     assert np.all(np.isinf(bounds[:, 2]))
     # The batch finds each pair's next due sample by bisection: the bound never decreases.
     assert np.all(np.diff(bounds[:, [0, 1, 3]], axis=0) >= 0.0)
+
+
+def _controller_and_path():
+    law = build_pipeline(plan=plan_through_joint_configurations([Q_HOME, Q_A]), with_table=False).law
+    controller = JointTrajectoryController.for_law(law)
+    dt = controller.time_step
+    # A path sampled at the controller instants from 0.05 s, held before and after.
+    t = 0.05 + dt * np.arange(40)
+    s = 0.5 - 0.5 * np.cos(np.pi * np.arange(40) / 39)
+    q = Q_HOME + s[:, None] * (Q_A - Q_HOME)
+    return controller, t, q, law
+
+
+def test_the_compiled_command_is_held_between_updates_without_feed_through():
+    controller = _controller_and_path()[0]
+    # The command depends on the measurement only through the integrator's state: the
+    # drive holds it between updates and nothing upstream is evaluated at plant steps.
+    assert not controller.HasDirectFeedthrough(
+        controller.q_measured_input_port.get_index(), controller.q_command_output_port.get_index())
+
+
+def test_open_loop_the_compiled_command_is_the_path_one_period_ahead_sample_for_sample():
+    controller, t, q, _ = _controller_and_path()
+    controller.set_path(t, q)
+    context = controller.CreateDefaultContext()
+    controller.set_initial_command(context, q[0])
+    dt = controller.time_step
+    desired = lambda time: np.array([np.interp(time, t, q[:, j]) for j in range(6)])
+    for k in range(60):
+        context.SetTime(k * dt)
+        # The arm exactly on the path: no feedback, the feed-forward alone.
+        controller.q_measured_input_port.FixValue(context, desired(k * dt))
+        np.testing.assert_allclose(controller.q_command_output_port.Eval(context), desired((k + 1) * dt),
+                                   atol=1e-12)
+        update = controller.EvalUniquePeriodicDiscreteUpdate(context)
+        context.SetDiscreteState(update.value())
+    np.testing.assert_allclose(controller.desired_positions(context), q[-1])  # held after the end
+
+
+def test_the_compiled_feedback_pulls_the_command_towards_the_path_at_the_clipped_speed():
+    controller, t, q, law = _controller_and_path()
+    controller.set_path(t, q)
+    context = controller.CreateDefaultContext()
+    controller.set_initial_command(context, q[0])
+    dt, K = controller.time_step, controller.position_gain
+    # 1 mrad behind on every joint, before the path starts: dt K of it corrected per period.
+    controller.q_measured_input_port.FixValue(context, q[0] - 1e-3)
+    context.SetDiscreteState(controller.EvalUniquePeriodicDiscreteUpdate(context).value())
+    np.testing.assert_allclose(controller.q_command_output_port.Eval(context), q[0] + dt * K * 1e-3, atol=1e-12)
+    # Far behind: each joint's step is clipped at its speed limit.
+    controller.q_measured_input_port.FixValue(context, q[0] - 1.0)
+    before = controller.q_command_output_port.Eval(context).copy()
+    context.SetDiscreteState(controller.EvalUniquePeriodicDiscreteUpdate(context).value())
+    step = controller.q_command_output_port.Eval(context) - before
+    np.testing.assert_allclose(step, dt * law.velocity_limits, rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_with_sampled_output_ports_the_feedback_compares_the_path_a_plant_step_later():
+    # The plant's step then comes before the controller's update at the same instant: the
+    # measurement is of t + h, and the feedback compares it with the path at t + h.
+    plan = plan_through_joint_configurations([Q_HOME, Q_A, Q_B])
+    config = PipelineConfig()
+    config.station.sampled_output_ports = True
+    pipeline = build_pipeline(plan=plan, with_table=False, config=config)
+    assert pipeline.controller.lead_s == pipeline.station.time_step > 0.0
+    _, result = ClosedLoopRunner(pipeline).run(q_initial=Q_HOME)
+    assert max(e.position_m for e in result.critical_errors) < 1e-4

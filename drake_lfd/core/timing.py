@@ -139,6 +139,11 @@ class TimedPlan:
         """The poses as pydrake ``RigidTransform`` objects, one per sample."""
         return [RigidTransform(T) for T in matrices_from_dual_quaternion(self.poses)]
 
+    def X_WE_critical(self) -> list[RigidTransform]:
+        """The poses of the critical configurations (the samples at ``critical_indices``),
+        as :meth:`X_WE_list` gives them."""
+        return [RigidTransform(T) for T in matrices_from_dual_quaternion(self.poses[list(self.critical_indices)])]
+
     def to_piecewise_pose(self) -> PiecewisePose:
         """Linear in position, slerp in rotation between the (dense) samples."""
         return PiecewisePose.MakeLinear(list(self.times), self.X_WE_list())

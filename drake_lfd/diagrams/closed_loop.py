@@ -52,7 +52,7 @@ from drake_lfd.diagrams.plan_markers import draw_plan
 from drake_lfd.robot.initial_ik import InitialConfiguration, solve_initial_configuration
 from drake_lfd.robot.kinematics import NUM_JOINTS, UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene
-from drake_lfd.systems.joint_trajectory_controller import joint_trajectory_of_plan
+from drake_lfd.systems.joint_trajectory_controller import joint_path_of_plan
 from drake_lfd.systems.shell_monitor import BoxClearance
 
 # The controller of runs whose task changes while the arm moves (replanning).
@@ -335,7 +335,6 @@ class ClosedLoopRunner:
         if scheduled is None or not scheduled.planned:
             return scheduled, None
         context = simulator.get_mutable_context()
-        X_WE_start = scheduled.X_WE_desired(0.0)
         initial_configuration = None
         joint_path = scheduled.result.joint_path
         if q_initial is None and joint_path is not None:
@@ -344,13 +343,13 @@ class ClosedLoopRunner:
             q_initial = joint_path.q[0]
         if q_initial is None:
             initial_configuration = solve_initial_configuration(
-                X_WE_start, X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
+                scheduled.X_WE_desired(0.0), X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
                 obstacles=station.obstacles, safety_shells=station.safety_shells, scene=self._ik_scene)
             q_initial = initial_configuration.q
         q_initial = np.asarray(q_initial, dtype=float)
         station.set_initial_positions(context, q_initial)
         if pipeline.compiled:
-            pipeline.controller.set_trajectory(joint_trajectory_of_plan(scheduled, q_initial, pipeline.law))
+            pipeline.controller.set_path(*joint_path_of_plan(scheduled, q_initial, pipeline.law))
             pipeline.controller.set_initial_command(context, q_initial)
         pipeline.logger.FindMutableLog(context).Clear()
         visualizer = station.visualizer
@@ -370,14 +369,6 @@ class ClosedLoopRunner:
         plant, model = station.plant, station.model
         plant_context = plant.GetMyContextFromRoot(context)
         stopped_early, stop_reason = False, ""
-        logger_context = pipeline.logger.GetMyContextFromRoot(context)
-
-        def measure_log():
-            # The shell monitor measures the joint-state log, a batch at a time.
-            if pipeline.monitor.measures_log:
-                log = pipeline.logger.GetLog(logger_context)
-                pipeline.monitor.measure_log(context, log.sample_times(), log.data()[:NUM_JOINTS].T)
-
         critical_errors = []
         num_cons = len(scheduled.timed.critical_indices)
         changes = sorted(task_changes, key=lambda change: change[0])
@@ -395,18 +386,20 @@ class ClosedLoopRunner:
                     break
                 target = min(t_due, changes[0][0]) if changes else t_due
                 status = simulator.AdvanceTo(target)
-                measure_log()
                 if status.reason() == status.ReturnReason.kReachedTerminationCondition:
                     stopped_early, stop_reason = True, status.message()
             if stopped_early:
                 nan6 = np.full(NUM_JOINTS, np.nan)
                 critical_errors.append(CriticalError(con, t_due, math.nan, math.nan, nan6, reached=False))
                 continue
-            X_WE_desired = scheduled.X_WE_desired(t_due)  # the plan's pose of con_i (a knot)
+            X_WE_desired = scheduled.timed.X_WE_critical()[con - 1]  # the plan's pose of con_i
             q = plant.GetPositions(plant_context, model).copy()
             position, rotation = _pose_errors(self.kinematics.X_WE(q), X_WE_desired)
             critical_errors.append(CriticalError(con, t_due, position, rotation, q))
-        measure_log()  # the samples since the last batch
+        if pipeline.monitor.measures_log:
+            # The shell monitor measures the run's joint-state log, in one batch.
+            log = pipeline.logger.GetLog(pipeline.logger.GetMyContextFromRoot(context))
+            pipeline.monitor.measure_log(context, log.sample_times(), log.data()[:NUM_JOINTS].T)
         wall_time_s, cpu_time_s = time.perf_counter() - wall_start, time.process_time() - cpu_start
         scheduled = pipeline.plan_output_port.Eval(context)
 

@@ -47,6 +47,7 @@ def judge_run(
     position_tolerance_m: float = SUCCESS_POSITION_TOLERANCE_M,
     rotation_tolerance_rad: float = SUCCESS_ROTATION_TOLERANCE_RAD,
     singularity_margin: float = SUCCESS_SINGULARITY_MARGIN,
+    kinematics: UR5eKinematics | None = None,
 ) -> RunJudgement:
     """Checks a run against the success criteria.
 
@@ -62,11 +63,15 @@ def judge_run(
       ``|sin q5|`` (wrist aligned) stay at or above it; a run through a singularity is
       not a success even when it ends at the right pose.
 
+    ``kinematics``: the run's (its ``X_WB`` and ``X_tool0_E``), to save building one per
+    run; by default made from the result's frames.
+
     Returns
     -------
     RunJudgement
     """
-    kinematics = UR5eKinematics(X_WB=result.X_WB, X_tool0_E=result.X_tool0_E)
+    if kinematics is None:
+        kinematics = UR5eKinematics(X_WB=result.X_WB, X_tool0_E=result.X_tool0_E)
     if joint_limits is None:
         joint_limits = kinematics.position_limits()
     if velocity_limits is None:

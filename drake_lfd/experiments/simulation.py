@@ -132,7 +132,7 @@ class TrialRunner:
         except InputError as error:  # con_1 unreachable for the UR5e
             return TrialOutcome(trial, seed, plan, None, False, [str(error)])
         judgement = judge_run(run, joint_limits=self._joint_limits, velocity_limits=self._velocity_limits,
-                              path_constraints=concrete.path_constraints)
+                              path_constraints=concrete.path_constraints, kinematics=runner.kinematics)
         return TrialOutcome(trial, seed, scheduled.result, run, judgement.success, list(judgement.failures))
 
 

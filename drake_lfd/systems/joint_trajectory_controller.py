@@ -5,40 +5,65 @@ one the differential-IK law commands, sampled every controller period), and its 
 path is that path's forward kinematics. :class:`JointTrajectoryController` tracks it
 with no Python in the 100 Hz loop: a subsystem Diagram of pydrake primitives::
 
-    TrajectorySource(q_d(t + h), qdot_d(t + h)) --\
-                                                   Multiplexer -> MatrixGain (dt v) -> Saturation
-    q_measured -----------------------------------/                     (joint speed limits)
-        -> LinearSystem (discrete, period dt: the command integrator) -> Saturation (position limits)
-        -> q_command
+    TrajectorySource(w_k: the path's feed-forward step and dt K q_d, per period) --\
+                                                      Multiplexer -> MatrixGain (dt v) -> Saturation
+    q_measured --------------------------------------/                     (joint speed limits)
+        -> LinearSystem (discrete, period dt, no feed-through: the command integrator)
+        -> Saturation (position limits) -> q_command
 
 with the same law as the Python controller (``differential_ik.py``), written in joint space::
 
-    v_k = qdot_d + K (q_d - q_measured),    |v_k,j| <= fraction * vmax_j
-    q_command,k = q_command,k-1 + dt v_k     (Eq. 37-38's Euler step)
+    dt v_k = (q_d(t_k + 2 dt) - q_d(t_k + dt)) + dt K (q_d(t_k) - q_measured(t_k)),
+             |v_k,j| <= fraction * vmax_j
+    q_command,k+1 = q_command,k + dt v_k     (Eq. 37-38's Euler step)
 
 For small errors ``J^-1 (X_WE_desired [-] X_WE(q_measured)) = q_d - q_measured`` to first
 order, so this is the task-space law's feedback (gain K = 20 /s, integrated on the
-command side: integral action on the tracking error) with the feed-forward ``J^-1 V_d``
-of a path that already is the law's. The integrator is a discrete ``LinearSystem``
-(``x <- x + dt v``) whose output ``y = x + dt v`` feeds through, updated at the instants
-the drive samples the command, so the drive takes the command computed at that very
-instant. The station's plant steps as a discrete update (unsampled output ports), so
-the integrator's update at ``t_k`` sees the positions of ``t_k``, as the Python
-controller does 0.1 ms earlier. (With Drake's sampled output ports the plant's step is
-an unrestricted update, applied before the discrete updates of the same instant: the
-integrator then sees the positions of ``t_k + h``, ``h`` the plant step, and the desired
-trajectory is read ``h`` ahead, ``lead_s``; without that lead the arm lags the plan by
-4.9 ms, 0.8 mm rms on the 10 s benchmark plan.) Limits: the commanded joint speeds are clipped per joint to
+command side: integral action on the tracking error) with the feed-forward of a path that
+already is the law's, as the path's own step over a period (so open loop the command is
+the path, sample for sample). Everything but the measurement is known before the run, so
+``w_k`` is computed then, one value per controller instant (``set_path``), and held
+between them.
+
+The integrator is a discrete ``LinearSystem`` (``x <- x + dt v`` at the instants the drive
+samples the command) whose output is its state, so the drive holds the command between
+updates and the controller's systems are evaluated once a period, at the update, not at
+every plant step. With the output fed through, ``y = x + dt v``, as before, every 5 ms
+plant step evaluated the whole chain again with that step's measurement, for a command
+that moved between the drive's samples: a transferring trial's simulation took 1.28x the
+CPU of the station driven along the same joint path (min of 10 interleaved runs), now
+1.04x. The instructions executed barely changed (callgrind: 893 M against 881 M, the
+driven station 841 M, the station holding still 744 M), so the saving is in the memory
+system, not in arithmetic. The update at
+``t_k`` sees the positions of ``t_k`` (the station's plant steps as a discrete update,
+simultaneous with this one) and its command takes effect from the next plant step, so
+the feed-forward is the path's step one period ahead, as the Python controller targets
+the pose due one period later. On the 10 s benchmark plan (``benchmarks/bench_closed_loop.py``)
+the lead of the feed-forward step, in periods, gives (path max / rms, at the critical
+configurations, mm)::
+
+    lead       0           0.25        0.5         0.75        1           1.5
+    tracking   1.46/0.27   1.24/0.24   1.03/0.21   0.84/0.18   0.72/0.17   0.69/0.17
+    at cons    0.082       0.073       0.062       0.041       0.024       0.160
+
+against 0.93 / 0.17 / 0.060 with the fed-through output. The feedback compares the path
+at the measurement's own time: a quarter period either way leaves 0.42-0.45 mm rms.
+(With Drake's sampled output ports the plant's step is an unrestricted update, applied
+before the discrete updates of the same instant: the integrator then sees the positions
+of ``t_k + h``, ``h`` the plant step, and the feedback compares them with the path at
+``t_k + h``, ``lead_s``.) Limits: the commanded joint speeds are clipped per joint to
 ``velocity_limit_fraction`` of the UR5e's limits and the command to the joint position
 limits (the Python law scales the whole motion instead; plans are timed within 0.9 of
 the limits, so on the paper's tasks neither binds).
 
-The desired joint trajectory is a cubic Hermite spline through the path's samples with
-central-difference velocities. It is
-a property of the System (``TrajectorySource.UpdateTrajectory``), set per run by
-``closed_loop.py`` before simulating; :func:`joint_trajectory_of_plan` makes it, from the
-plan's checked joint path, or (a plan made without the check, or given as an SE(3)
-motion) by following the plan kinematically with the controller's law.
+The desired joint path is set per run by ``closed_loop.py`` before simulating
+(``set_path``: the source's ``UpdateTrajectory``, a property of the System), as samples at
+the controller instants: :func:`joint_path_of_plan` gives them, the plan's checked joint
+path, or (a plan made without the check, or given as an SE(3) motion) the path the
+controller's law takes following the plan kinematically. Only those samples are read, so
+no spline is built for a run (building a cubic ``PiecewisePolynomial`` through a 7 s
+path's samples cost 3 ms); :func:`joint_trajectory_of_plan` is the path as a cubic Hermite
+spline, for plotting or driving a bare station.
 
 Not for: the task-space Python controller (``differential_ik.py``, the paper's
 baseline), the drive (``diagrams/station.py``).
@@ -58,8 +83,8 @@ from pydrake.trajectories import PiecewisePolynomial
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.differential_ik_law import DEFAULT_POSITION_GAIN, DEFAULT_TIME_STEP_S, DifferentialIKLaw
 
-__all__ = ["JointTrajectoryController", "joint_trajectory_of_plan", "joint_spline", "law_for_plant",
-           "JOINT_PATH_AGREEMENT_M"]
+__all__ = ["JointTrajectoryController", "joint_path_of_plan", "joint_trajectory_of_plan", "joint_spline",
+           "law_for_plant", "JOINT_PATH_AGREEMENT_M"]
 
 # A plan's joint path is used as it is when its forward kinematics meets the plan's
 # critical configurations this closely (a path that no longer belongs to the plan, for
@@ -116,19 +141,19 @@ def _path_matches_plan(scheduled: ScheduledPlan, q_initial: np.ndarray, law: Dif
         return False
     timed = scheduled.timed
     tolerance = JOINT_PATH_AGREEMENT_M + 0.5 * law.time_step * 1.0
-    for i in timed.critical_indices:
+    for i, X_plan in zip(timed.critical_indices, timed.X_WE_critical()):
         k = int(round(timed.times[i] / law.time_step))
         if k >= len(path.q):
             return False
-        X_path, X_plan = law.X_WE(path.q[k]), scheduled.X_WE_desired(scheduled.start_time_s + timed.times[i])
-        if np.linalg.norm(X_path.translation() - X_plan.translation()) > tolerance:
+        if np.linalg.norm(law.X_WE(path.q[k]).translation() - X_plan.translation()) > tolerance:
             return False
     return True
 
 
-def joint_trajectory_of_plan(scheduled: ScheduledPlan, q_initial: np.ndarray,
-                             law: DifferentialIKLaw) -> PiecewisePolynomial:
-    """The desired joint trajectory of a run, in simulation time.
+def joint_path_of_plan(scheduled: ScheduledPlan, q_initial: np.ndarray,
+                       law: DifferentialIKLaw) -> tuple[np.ndarray, np.ndarray]:
+    """The desired joint path of a run, one sample per controller period: simulation
+    times t (m,) and positions q (m, 6).
 
     The plan's checked joint path when it starts at ``q_initial`` and still belongs to
     the plan (its forward kinematics meets the critical configurations); otherwise the
@@ -138,8 +163,15 @@ def joint_trajectory_of_plan(scheduled: ScheduledPlan, q_initial: np.ndarray,
     q_initial = np.asarray(q_initial, dtype=float)
     if _path_matches_plan(scheduled, q_initial, law):
         path = scheduled.result.joint_path
-        return joint_spline(scheduled.start_time_s + np.asarray(path.t, dtype=float), path.q)
-    return joint_spline(*_follow(scheduled, q_initial, law))
+        return scheduled.start_time_s + np.asarray(path.t, dtype=float), np.asarray(path.q, dtype=float)
+    return _follow(scheduled, q_initial, law)
+
+
+def joint_trajectory_of_plan(scheduled: ScheduledPlan, q_initial: np.ndarray,
+                             law: DifferentialIKLaw) -> PiecewisePolynomial:
+    """:func:`joint_path_of_plan` as a :func:`joint_spline` (the desired joint trajectory
+    of a run between the samples too, for plotting or driving a station)."""
+    return joint_spline(*joint_path_of_plan(scheduled, q_initial, law))
 
 
 class JointTrajectoryController(Diagram):
@@ -176,21 +208,24 @@ class JointTrajectoryController(Diagram):
         self.time_step = float(time_step)
         self.position_gain = float(position_gain)
         builder = DiagramBuilder()
-        # A placeholder until a run sets its trajectory: hold zero.
+        # The run's w_k (module docstring), held between controller instants; a
+        # placeholder until a run sets its trajectory: zero.
         self._source = builder.AddNamedSystem("joint_trajectory", TrajectorySource(
-            PiecewisePolynomial(np.zeros((n, 1))), output_derivative_order=1, zero_derivatives_beyond_limits=True))
-        mux = builder.AddNamedSystem("desired_and_measured", Multiplexer([2 * n, n]))
+            PiecewisePolynomial(np.zeros((n, 1)))))
+        self._path = (np.zeros(1), np.zeros((1, n)))
+        mux = builder.AddNamedSystem("desired_and_measured", Multiplexer([n, n]))
         identity = np.eye(n)
         K, dt = self.position_gain, self.time_step
-        # dt * v = dt * (K q_d + qdot_d - K q_measured): one step of the command.
+        # dt * v = w_k - dt K q_measured: one step of the command.
         step = builder.AddNamedSystem("feed_forward_and_feedback", MatrixGain(
-            dt * np.hstack([K * identity, identity, -K * identity])))
+            np.hstack([identity, -dt * K * identity])))
         speed_limit = builder.AddNamedSystem("joint_speed_limits", Saturation(
             -dt * np.asarray(velocity_limits, dtype=float), dt * np.asarray(velocity_limits, dtype=float)))
-        # The command integrator: x <- x + dt v every period, output y = x + dt v (fed
-        # through: the drive samples the command of this very instant).
+        # The command integrator: x <- x + dt v every period, output x (no feed-through:
+        # the drive holds it until the next update, and nothing upstream is evaluated
+        # between updates).
         self._command = builder.AddNamedSystem("command_integrator", LinearSystem(
-            A=identity, B=identity, C=identity, D=identity, time_period=dt))
+            A=identity, B=identity, C=identity, D=np.zeros((n, n)), time_period=dt))
         position_limit = builder.AddNamedSystem("joint_position_limits", Saturation(
             np.asarray(position_lower, dtype=float), np.asarray(position_upper, dtype=float)))
         builder.Connect(self._source.get_output_port(), mux.get_input_port(0))
@@ -212,12 +247,27 @@ class JointTrajectoryController(Diagram):
                    velocity_limits=law.velocity_limits, time_step=law.time_step, position_gain=law.position_gain,
                    **kwargs)
 
-    def set_trajectory(self, trajectory: PiecewisePolynomial) -> None:
-        """The desired joint trajectory (simulation time), held before and after it."""
-        trajectory = trajectory.Clone()
-        if self.lead_s:
-            trajectory.shiftRight(-self.lead_s)
-        self._source.UpdateTrajectory(trajectory)
+    def set_path(self, t, q) -> None:
+        """The desired joint path: positions ``q`` (m, 6) at simulation times ``t`` (m,)
+        (increasing; :func:`joint_path_of_plan`), linear between samples, held before
+        the first and after the last.
+
+        Sets the source's ``w_k`` at every controller instant ``t_k = k dt`` up to the
+        path's end (held after it), each held over ``[t_k - dt/2, t_k + dt/2)`` so the
+        update at ``t_k`` reads it whatever the rounding of ``t_k``. A path sampled at
+        the controller instants (a plan's) is read at its samples.
+        """
+        self._path = (np.array(t, dtype=float), np.array(q, dtype=float))
+        dt, K = self.time_step, self.position_gain
+        grid = dt * np.arange(int(math.ceil(self._path[0][-1] / dt)) + 3)
+        w = self._at(grid + 2.0 * dt) - self._at(grid + dt) + dt * K * self._at(grid + self.lead_s)
+        breaks = np.concatenate([grid - 0.5 * dt, [grid[-1] + 0.5 * dt]])
+        self._source.UpdateTrajectory(PiecewisePolynomial.ZeroOrderHold(breaks, np.vstack([w, w[-1:]]).T))
+
+    def _at(self, times) -> np.ndarray:
+        """The desired path at ``times`` (k,): (k, 6)."""
+        t, q = self._path
+        return np.column_stack([np.interp(times, t, q[:, j]) for j in range(q.shape[1])])
 
     def set_initial_command(self, root_context: Context, q) -> None:
         """Sets the command integrator's state to ``q`` (6,), e.g. the initial positions."""
@@ -226,8 +276,7 @@ class JointTrajectoryController(Diagram):
 
     def desired_positions(self, root_context: Context) -> np.ndarray:
         """q_d at the context's time, (6,)."""
-        n = self.q_measured_input_port.size()
-        return self._source.get_output_port().Eval(self._source.GetMyContextFromRoot(root_context))[:n].copy()
+        return self._at([root_context.get_time()])[0]
 
 
 def law_for_plant(plant, model, frame_E, config) -> DifferentialIKLaw:

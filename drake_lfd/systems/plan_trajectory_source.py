@@ -63,7 +63,7 @@ class PlanTrajectorySource(LeafSystem):
     def _scheduled(self, context) -> ScheduledPlan | None:
         plan = self.plan_input_port.Eval(context)
         # A ScheduledPlan with a motion (a request has no trajectory).
-        return plan if isinstance(plan, ScheduledPlan) and plan.trajectory is not None else None
+        return plan if isinstance(plan, ScheduledPlan) and plan.timed is not None else None
 
     def _calc_pose(self, context, output):
         plan = self._scheduled(context)
