@@ -65,6 +65,10 @@ __all__ = ["SUFFIX_SEPARATION", "Step", "SpanAllocation", "TableStats", "Composi
 # Alternative suffixes of one span (:meth:`CompositionProblem.suffix_candidates`) start at
 # least this many resampled samples apart (a tenth of a 100-sample demonstration).
 SUFFIX_SEPARATION = 10
+# Pair costs of one row computed at once (a chunk of the library's demonstrations): bounds
+# the kernel's temporaries and keeps them in the processor's cache (measured at h = 10,000:
+# 2^14-2^16 pair costs 3.0-3.3 s of CPU for the table, 2^17 and more 5.8-7.4 s).
+_PAIRS_PER_CHUNK = 1 << 15
 
 
 @dataclasses.dataclass(frozen=True)
@@ -261,21 +265,54 @@ class CompositionProblem:
         k, l = sweep.k, sweep.low - 1
         sweep.low = l
         g_l, g_k = self.num_candidates[l], self.num_candidates[k]
-        lib = self.library
         delta = dual_quaternion_relative(self.candidate_poses[l][:, None, :],
                                          self.candidate_poses[k][None, :, :]).reshape(-1, 8)
         rotations, translations = delta[:, :4], translation_from_dual_quaternion(delta)
-        keep = self._index_keeps(sweep, rotations, translations, k - l)
-        demos = sweep.demos[keep]
-        suffix = None if sweep.suffix is None else sweep.suffix[:, keep]
+        kept = np.flatnonzero(self._index_keeps(sweep, rotations, translations, k - l))
+        demos = sweep.demos[kept]
         if len(demos) == 0:
             sweep.finish(self._first_start(k))
             return
         self.stats.tested += len(demos)
+        last = l == self._first_start(k)
+        n_max = self.library.rotations.shape[1]
+        total = np.empty((g_l, g_k, len(demos)))  # (g_l, g_k, s): the spans (l, k)
+        after = None if last else np.empty((g_k, len(demos), n_max))  # the next suffix minima
+        alive = 0
+        step = max(1, _PAIRS_PER_CHUNK // (g_l * g_k * max(n_max, 1)))
+        for start in range(0, len(demos), step):
+            part = slice(start, start + step)
+            suffix = None if sweep.suffix is None else sweep.suffix[:, kept[part]]
+            chunk_total, chunk_after = self._row_chunk(rotations, translations, demos[part], suffix, g_l, g_k, last)
+            total[:, :, part] = chunk_total
+            if chunk_after is not None:
+                keep = np.isfinite(chunk_after).any(axis=(0, 2))  # some allocation of deltas l..k-1 exists
+                count = int(keep.sum())
+                after[:, alive:alive + count] = chunk_after[:, keep]
+                demos_alive = demos[part][keep]
+                sweep.demos = demos_alive if start == 0 else np.concatenate([sweep.demos, demos_alive])
+                alive += count
+        for s in np.flatnonzero(np.isfinite(total).any(axis=(0, 1))).tolist():
+            d = int(demos[s])
+            self._cost[(l, k, d)] = np.ascontiguousarray(total[:, :, s])
+            self._built[l].append((k, d))
+        if last:
+            sweep.finish(l)
+            return
+        sweep.suffix = after[:, :alive] if alive == len(demos) else after[:, :alive].copy()
+        if alive == 0:
+            sweep.finish(self._first_start(k))
+
+    def _row_chunk(self, rotations, translations, demos, suffix, g_l, g_k, last):
+        """Row l of one span end for the demonstrations ``demos`` (c,): the spans' costs
+        (g_l, g_k, c) and, unless ``last``, the suffix minima ``after`` (g_k, c, n_max)
+        for the longer spans; ``suffix`` (g_k, c, n_max) those of row l + 1 (None on the
+        first row). Every operation is per demonstration, so chunks of the library give
+        the same numbers as the whole."""
+        lib = self.library
         n_max = lib.rotations.shape[1]
-        every = len(demos) == self.num_demos
-        demo_q = (lib.rotations if every else lib.rotations[demos]).reshape(-1, 4)
-        demo_t = (lib.translations if every else lib.translations[demos]).reshape(-1, 3)
+        demo_q = lib.rotations[demos].reshape(-1, 4)
+        demo_t = lib.translations[demos].reshape(-1, 3)
         demo_h = lib.excursions(demos).reshape(-1) if self.cost_mode == "fidelity" else np.zeros(len(demo_q))
         pair, first = self._pair_costs(rotations, translations, demo_q, demo_t, demo_h, tie_break=False)
         pair = pair.reshape(g_l, g_k, len(demos), n_max)
@@ -284,24 +321,16 @@ class CompositionProblem:
         head = pair + first.reshape(pair.shape)
         if suffix is not None:
             head += suffix[None]
-        total = head.min(axis=-1)  # (g_l, g_k, s)
-        for s in np.flatnonzero(np.isfinite(total).any(axis=(0, 1))).tolist():
-            d = int(demos[s])
-            self._cost[(l, k, d)] = np.ascontiguousarray(total[:, :, s])
-            self._built[l].append((k, d))
-        if l == self._first_start(k):
-            sweep.finish(l)
-            return
-        reduced = pair.min(axis=0)  # (g_k, s, n): intermediate con l, its best candidate per delta
+        total = head.min(axis=-1)  # (g_l, g_k, c)
+        if last:
+            return total, None
+        reduced = pair.min(axis=0)  # (g_k, c, n): intermediate con l, its best candidate per delta
         if suffix is not None:
             reduced += suffix
         after = np.full(reduced.shape, np.inf)  # after[..., i] = min over i' > i
         if n_max > 1:
             after[..., :-1] = np.minimum.accumulate(reduced[..., :0:-1], axis=-1)[..., ::-1]
-        alive = np.isfinite(after).any(axis=(0, 2))
-        sweep.demos, sweep.suffix = demos[alive], after[:, alive]
-        if len(sweep.demos) == 0:
-            sweep.finish(self._first_start(k))
+        return total, after
 
     # -- queries -------------------------------------------------------------------------
     def row(self, j: int) -> list[tuple[int, int, np.ndarray]]:
