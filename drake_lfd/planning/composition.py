@@ -225,12 +225,12 @@ class CompositionProblem:
         return keys
 
     def _pair_costs(self, rotations, translations, demo_rotations, demo_translations, demo_excursions,
-                    tie_break):
+                    tie_break, demo_terms=None):
         """``fidelity.action_pair_costs`` in this problem's cost mode: (pair, first).
         ``tie_break``: for choosing an allocation (in the paper mode, the action costs
-        are Eq. 31's alpha alone)."""
+        are Eq. 31's alpha alone); ``demo_terms``: the demo deltas' prepared terms."""
         return action_pair_costs(rotations, translations, demo_rotations, demo_translations, demo_excursions,
-                                 self.tolerances, self.cost_mode, self.fidelity_weights, tie_break)
+                                 self.tolerances, self.cost_mode, self.fidelity_weights, tie_break, demo_terms)
 
     def _extend(self, k: int, j: int) -> None:
         """Sweeps span end k down to start j (see :meth:`_sweep_step`)."""
@@ -314,7 +314,7 @@ class CompositionProblem:
         demo_q = lib.rotations[demos].reshape(-1, 4)
         demo_t = lib.translations[demos].reshape(-1, 3)
         demo_h = lib.excursions(demos).reshape(-1) if self.cost_mode == "fidelity" else np.zeros(len(demo_q))
-        pair, first = self._pair_costs(rotations, translations, demo_q, demo_t, demo_h, tie_break=False)
+        pair, first = self._pair_costs(rotations, translations, demo_q, demo_t, demo_h, False, lib.terms.take(demos))
         pair = pair.reshape(g_l, g_k, len(demos), n_max)
         if lib.padded:
             pair[..., ~lib.valid[demos]] = np.inf

@@ -52,7 +52,7 @@ from numpy.typing import NDArray
 
 from drake_lfd.core.dual_quaternion import IDENTITY_DUAL_QUATERNION
 from drake_lfd.core.features import Feature
-from drake_lfd.core.fidelity import deltas_excursions
+from drake_lfd.core.fidelity import demo_delta_terms, deltas_excursions
 from drake_lfd.core.similarity import Tolerances, rotation_distance
 
 __all__ = ["BLOCK_DELTAS", "ALPHA_MARGIN", "SpanIndex", "PreparedLibrary", "prepared_library"]
@@ -167,6 +167,9 @@ class PreparedLibrary:
         Whether any demonstration is shorter than ``n_max`` (the kernel's results at the
         padding must then be made inf).
     index : SpanIndex
+    terms : fidelity.DemoDeltaTerms
+        The demo side of every pair cost (directions, log lengths, rotations by
+        component), shape (h, n_max): computed once, gathered per chunk of a row.
     """
 
     def __init__(self, features: Sequence[Feature], tolerances: Tolerances):
@@ -182,6 +185,7 @@ class PreparedLibrary:
         self.valid = np.arange(n_max)[None, :] < self.lengths[:, None]
         short = np.linalg.norm(self.translations, axis=-1) < tolerances.min_translation_m
         self.index = SpanIndex(self.rotations, short, self.lengths, tolerances)
+        self.terms = demo_delta_terms(self.rotations, self.translations, tolerances.min_translation_m)
         self._excursions = np.zeros((h, n_max))
         self._has_excursions = np.zeros(h, dtype=bool)
 
