@@ -6,14 +6,18 @@ one section: ``--section scale`` / ``issue`` / ``q``.
 * ``scale``: generated libraries of 10, 100, 1,000 and 10,000 demonstrations with their
   own random motions (``core/synthetic_library.random_features``), chained tasks of 4,
   10, 25 and 50 configurations made from pieces of the library's own demonstrations
-  (perturbed by up to 15 deg and 2 cm). For each cell: the exact planner's time (legal
-  action table and solve, default ``fidelity`` cost) on the first task the process plans
-  with that library (it prepares the library: stacks, KD-tree, suffix excursions) and on
-  a second task of the same size (the prepared library reused), the peak memory of
-  that plan (tracemalloc, numpy's buffers included), and the fractions of
-  (demonstration, span) pairs the index discarded, the sweep never reached (no shorter
-  allocation), and the exact test ran on. Then, when ``benchmarks/library_ops.py`` is
-  present, the on-disk library's operation times at each size.
+  (perturbed by up to 15 deg and 2 cm). The library is prepared first (stacks, KD-tree,
+  demo terms: once per library in a process, timed apart). For each cell, one task,
+  planned three times by the exact planner (legal-action table and solve, default
+  ``fidelity`` cost), wall and CPU seconds: the first plan (it also computes the suffix
+  excursions of the demonstrations it reaches for the first time), the repeated plan
+  (a new problem, the prepared library reused: what every later plan of that size
+  costs), and under tracemalloc for the plan's peak memory (numpy's buffers included);
+  then the fractions of (demonstration, span) pairs the index discarded, the sweep never
+  reached (no shorter allocation), and the exact test ran on. After each size, the
+  process's peak resident memory so far (ru_maxrss: the generated features, the
+  prepared library and the plans) and the load average. Then, when
+  ``benchmarks/library_ops.py`` is present, the on-disk library's operation times.
 * ``issue``: the table of the issue: the paper's six demonstrations copied and rigidly
   turned to h = 6, 25, 100, chained tasks of n = 10, 25, 50, exact planner.
 * ``q``: the Q-learner against libraries of 6 to 1,000 demonstrations (each size in its
@@ -30,6 +34,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
+import os
 import pathlib
 import resource
 import subprocess
@@ -47,10 +52,12 @@ from drake_lfd.core.dual_quaternion import (
 )
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
+from drake_lfd.core.similarity import Tolerances
 from drake_lfd.core.synthetic_library import PAPER6, random_features, synthetic_demo_poses
 from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.planner import build_problem
 from drake_lfd.planning.random_tasks import chained_task
+from drake_lfd.planning.span_index import prepared_library
 
 __all__ = ["main", "turned_copies", "plan_once"]
 
@@ -96,30 +103,47 @@ def _task(library, n, seed):
                         perturbation_m=0.02, name=f"chained_{n}")[0]
 
 
+def _seconds(function):
+    """``function()``'s result with its wall and CPU seconds (this process's)."""
+    start, start_cpu = time.perf_counter(), time.process_time()
+    result = function()
+    return result, time.perf_counter() - start, time.process_time() - start_cpu
+
+
+def _peak_rss_mb() -> float:
+    """The process's peak resident memory so far (ru_maxrss)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def scale_section(sizes, lengths, cost):
-    print(f"## planning (exact planner, {cost} cost)")
-    print("| h | n | first plan s | next plan s | next plan CPU s | peak MB | discarded by index | not reached | tested "
+    print(f"## planning (exact planner, {cost} cost; wall s with CPU s in brackets)")
+    print("| h | n | first plan | repeated plan | plan peak MB | discarded by index | not reached | tested "
           "| planned |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for h in sizes:
-        start = time.perf_counter()
-        library = random_features(np.random.default_rng(h), h)
-        made = time.perf_counter() - start
+        library, made, _ = _seconds(lambda: random_features(np.random.default_rng(h), h))
+        _, prepared, prepared_cpu = _seconds(lambda: prepared_library(list(library.values()), Tolerances()))
         for n in lengths:
+            task = _task(library, n, 2 * n)
             try:
-                first = plan_once(_task(library, n, 2 * n), library, cost)[0]
+                first = plan_once(task, library, cost)
             except InputError as error:  # check_problem_size's refusal, before anything is allocated
-                print(f"| {h:,} | {n} | refused: {str(error).split(': the task ')[-1].split(':')[0]} |", flush=True)
+                print(f"| {h:,} | {n} | refused by the size check: {str(error).split(': the task ')[-1].split(':')[0]} "
+                      "|", flush=True)
                 continue
-            task = _task(library, n, 2 * n + 1)
+            first = first[0], first[4]  # the problem is dropped: one table alive at a time
             seconds, _, problem, steps, cpu = plan_once(task, library, cost)
+            s, planned = problem.stats, steps is not None
+            del problem, steps
             peak = plan_once(task, library, cost, memory=True)[1]
-            s = problem.stats
-            print(f"| {h:,} | {n} | {first:.2f} | {seconds:.2f} | {cpu:.2f} | {peak / 2**20:.0f} | "
+            print(f"| {h:,} | {n} | {first[0]:.2f} ({first[1]:.2f}) | {seconds:.2f} ({cpu:.2f}) | {peak / 2**20:.0f} | "
                   f"{s.discarded_by_index / s.pairs:.2f} | {s.dropped_earlier / s.pairs:.2f} | "
-                  f"{s.tested / s.pairs:.2f} | {'yes' if steps else 'no'} |", flush=True)
-        print(f"(library of {h:,} generated in {made:.1f} s, not counted)", flush=True)
-    print(f"process peak resident memory: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+                  f"{s.tested / s.pairs:.2f} | {'yes' if planned else 'no'} |", flush=True)
+        print(f"(h = {h:,}: library generated in {made:.1f} s, prepared (stacks, index, demo terms) in {prepared:.2f} s "
+              f"({prepared_cpu:.2f} CPU), neither counted; process peak so far {_peak_rss_mb():.0f} MB; "
+              f"load average {os.getloadavg()[0]:.1f})", flush=True)
+        del library
+    print(f"process peak resident memory: {_peak_rss_mb():.0f} MB")
     library_operations(sizes)
 
 

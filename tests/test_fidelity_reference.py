@@ -135,7 +135,7 @@ def test_pair_costs_equal_the_reference(seed):
                 new, old = fidelity.action_pair_costs(*args), reference_action_pair_costs(*args)
                 assert np.array_equal(new[0], old[0]) and np.array_equal(new[1], old[1]), (seed, trial, cost)
                 # With the demo side prepared once (as a library keeps it): the same bits.
-                terms = fidelity.demo_delta_terms(demo.rotations, demo_t, tolerances.min_translation_m)
+                terms = fidelity.demo_delta_terms(demo_t, tolerances.min_translation_m)
                 prepared = fidelity.action_pair_costs(*args, demo_terms=terms)
                 assert np.array_equal(prepared[0], old[0]) and np.array_equal(prepared[1], old[1]), (seed, trial)
 

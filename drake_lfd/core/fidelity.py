@@ -375,7 +375,7 @@ class DemoDeltaTerms:
     they meet (``span_index.PreparedLibrary`` keeps a library's and gathers them per
     chunk of demonstrations, so no row normalises a demo translation again).
 
-    Attributes (the deltas' shape (...) leading, or trailing for ``components``)
+    Attributes (each of the deltas' shape (...) leading)
     ----------
     directions : (units (..., 3), short (...))
         ``similarity.translation_directions`` of the translations (beta's inputs).
@@ -383,31 +383,25 @@ class DemoDeltaTerms:
         ``ln(max(|t|, min_length_m))``, the stretch term's demo side.
     short_length : array of bool, shape (...)
         ``|t| < min_length_m`` by the norm the fidelity terms use.
-    components : array, shape (4, ...)
-        The rotations by component, each contiguous (the anchor term's input).
     """
 
     directions: tuple[NDArray[np.float64], NDArray[np.bool_]]
     log_length: NDArray[np.float64]
     short_length: NDArray[np.bool_]
-    components: NDArray[np.float64]
 
     def take(self, rows: NDArray) -> "DemoDeltaTerms":
         """The terms of the rows ``rows`` of the first axis (demonstrations of a padded
         stack (h, n_max, ...)), flattened to one axis of deltas."""
         units, short = self.directions
         return DemoDeltaTerms((units[rows].reshape(-1, 3), short[rows].reshape(-1)),
-                              self.log_length[rows].reshape(-1), self.short_length[rows].reshape(-1),
-                              self.components[:, rows].reshape(4, -1))
+                              self.log_length[rows].reshape(-1), self.short_length[rows].reshape(-1))
 
 
-def demo_delta_terms(demo_rotations: ArrayLike, demo_translations: ArrayLike,
-                     min_length_m: float = Tolerances().min_translation_m) -> DemoDeltaTerms:
-    """The :class:`DemoDeltaTerms` of demo deltas, rotations (..., 4) and translations (..., 3)."""
-    q = np.asarray(demo_rotations, dtype=float)
+def demo_delta_terms(demo_translations: ArrayLike, min_length_m: float = Tolerances().min_translation_m
+                     ) -> DemoDeltaTerms:
+    """The :class:`DemoDeltaTerms` of demo deltas' translations (..., 3)."""
     return DemoDeltaTerms(translation_directions(demo_translations, min_length_m),
-                          *_log_lengths(demo_translations, min_length_m),
-                          np.ascontiguousarray(np.moveaxis(q, -1, 0)))
+                          *_log_lengths(demo_translations, min_length_m))
 
 
 # Similar pairs whose fidelity terms are computed at once (bounds the temporaries,
@@ -466,7 +460,7 @@ def action_pair_costs(
     demo_q, demo_t = np.asarray(demo_rotations, dtype=float), np.asarray(demo_translations, dtype=float)
     demo_h = np.asarray(demo_excursions, dtype=float)
     if demo_terms is None:
-        demo_terms = demo_delta_terms(demo_q, demo_t, tolerances.min_translation_m)
+        demo_terms = demo_delta_terms(demo_t, tolerances.min_translation_m)
     alpha, beta = alpha_beta_matrices(task_q, task_t, demo_q, demo_t, tolerances.min_translation_m,
                                       demo_terms.directions)
     pair = similar_pair_costs(alpha, beta, tolerances)
@@ -475,6 +469,7 @@ def action_pair_costs(
     if len(similar) == 0:
         return pair, first
     pair_flat, first_flat, beta_flat = pair.reshape(-1), first.reshape(-1), beta.reshape(-1)
+    components = np.ascontiguousarray(demo_q.T)  # (4, n): each batch gathers contiguous rows
     n = pair.shape[1]
     for start in range(0, len(similar), _PAIRS_PER_BATCH):
         e = similar[start:start + _PAIRS_PER_BATCH]
@@ -483,7 +478,7 @@ def action_pair_costs(
         else:
             r, c = np.divmod(e, n)
             q, t = task_q[r], task_t[r]
-        terms, first_terms = _pair_terms(beta_flat[e], q, t, list(demo_terms.components[:, c]),
+        terms, first_terms = _pair_terms(beta_flat[e], q, t, list(components[:, c]),
                                          demo_terms.log_length[c], demo_terms.short_length[c], demo_h[c], weights,
                                          tolerances.min_translation_m)
         if factor != 1.0:

@@ -168,8 +168,8 @@ class PreparedLibrary:
         padding must then be made inf).
     index : SpanIndex
     terms : fidelity.DemoDeltaTerms
-        The demo side of every pair cost (directions, log lengths, rotations by
-        component), shape (h, n_max): computed once, gathered per chunk of a row.
+        The demo side of every pair cost (translation directions and log lengths),
+        shape (h, n_max): computed once, gathered per chunk of a row.
     """
 
     def __init__(self, features: Sequence[Feature], tolerances: Tolerances):
@@ -185,7 +185,7 @@ class PreparedLibrary:
         self.valid = np.arange(n_max)[None, :] < self.lengths[:, None]
         short = np.linalg.norm(self.translations, axis=-1) < tolerances.min_translation_m
         self.index = SpanIndex(self.rotations, short, self.lengths, tolerances)
-        self.terms = demo_delta_terms(self.rotations, self.translations, tolerances.min_translation_m)
+        self.terms = demo_delta_terms(self.translations, tolerances.min_translation_m)
         self._excursions = np.zeros((h, n_max))
         self._has_excursions = np.zeros(h, dtype=bool)
 
