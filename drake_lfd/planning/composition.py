@@ -292,10 +292,13 @@ class CompositionProblem:
                 demos_alive = demos[part][keep]
                 sweep.demos = demos_alive if start == 0 else np.concatenate([sweep.demos, demos_alive])
                 alive += count
-        for s in np.flatnonzero(np.isfinite(total).any(axis=(0, 1))).tolist():
-            d = int(demos[s])
-            self._cost[(l, k, d)] = np.ascontiguousarray(total[:, :, s])
-            self._built[l].append((k, d))
+        legal = np.flatnonzero(np.isfinite(total).any(axis=(0, 1)))
+        if len(legal):
+            matrices = np.moveaxis(total[:, :, legal], -1, 0).copy()  # each (g_l, g_k) contiguous
+            matrices.flags.writeable = False  # shared by the row's entries: forbidding replaces one
+            found = demos[legal].tolist()
+            self._cost.update(zip([(l, k, d) for d in found], matrices))
+            self._built[l].extend([(k, d) for d in found])
         if last:
             sweep.finish(l)
             return
