@@ -12,11 +12,12 @@ one section: ``--section scale`` / ``issue`` / ``q``.
   ``fidelity`` cost), wall and CPU seconds: the first plan (it also computes the suffix
   excursions of the demonstrations it reaches for the first time), the repeated plan
   (a new problem, the prepared library reused: what every later plan of that size
-  costs), and under tracemalloc for the plan's peak memory (numpy's buffers included);
-  then the fractions of (demonstration, span) pairs the index discarded, the sweep never
+  costs), the larger of the two plans' peak memory (the resident memory at its
+  highest during the plan above what the process held before: numpy's buffers, Python's
+  objects and the allocator's slack); then the fractions of (demonstration, span) pairs the index discarded, the sweep never
   reached (no shorter allocation), and the exact test ran on. After each size, the
-  process's peak resident memory so far (ru_maxrss: the generated features, the
-  prepared library and the plans) and the load average. Then, when
+  process's peak resident memory so far (VmHWM, what ru_maxrss reports: the generated
+  features, the prepared library and the plans) and the load average. Then, when
   ``benchmarks/library_ops.py`` is present, the on-disk library's operation times.
 * ``issue``: the table of the issue: the paper's six demonstrations copied and rigidly
   turned to h = 6, 25, 100, chained tasks of n = 10, 25, 50, exact planner.
@@ -41,7 +42,6 @@ import subprocess
 import sys
 import tempfile
 import time
-import tracemalloc
 
 import numpy as np
 
@@ -82,20 +82,39 @@ def turned_copies(count: int, seed: int = 0) -> dict[str, Feature]:
     return copies
 
 
-def plan_once(task, library, cost="fidelity", memory=False):
-    """Builds the problem and plans exactly: (seconds, peak bytes or None, problem, steps,
-    CPU seconds of this process: on a loaded machine the wall time counts the waits)."""
-    if memory:
-        tracemalloc.start()
+def plan_once(task, library, cost="fidelity"):
+    """Builds the problem and plans exactly: (seconds, peak MB, problem, steps, CPU
+    seconds of this process: on a loaded machine the wall time counts the waits). The
+    peak is the process's resident memory at its highest during the plan above what it
+    held before (``/proc/self/status`` VmHWM after resetting it, where Linux allows)."""
+    rss = _reset_peak()
     start, start_cpu = time.perf_counter(), time.process_time()
     problem = build_problem(task, library, cost=cost)
     steps = plan_exact(problem)
     seconds, cpu = time.perf_counter() - start, time.process_time() - start_cpu
-    peak = None
-    if memory:
-        peak = tracemalloc.get_traced_memory()[1]
-        tracemalloc.stop()
-    return seconds, peak, problem, steps, cpu
+    return seconds, _status_mb("VmHWM") - rss, problem, steps, cpu
+
+
+_process_peak_mb = 0.0
+
+
+def _status_mb(field: str) -> float:
+    """A memory field of ``/proc/self/status`` in MB (``VmRSS``, ``VmHWM``)."""
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def _reset_peak() -> float:
+    """Folds the peak so far into :func:`_peak_rss_mb`'s and resets the kernel's, so the
+    next VmHWM is the peak of what follows; returns the resident memory now (MB)."""
+    global _process_peak_mb
+    _process_peak_mb = max(_process_peak_mb, _status_mb("VmHWM"))
+    with open("/proc/self/clear_refs", "w") as clear:
+        clear.write("5")  # resets VmHWM (and ru_maxrss) to the current resident memory
+    return _status_mb("VmRSS")
 
 
 def _task(library, n, seed):
@@ -111,8 +130,8 @@ def _seconds(function):
 
 
 def _peak_rss_mb() -> float:
-    """The process's peak resident memory so far (ru_maxrss)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    """The process's peak resident memory so far (VmHWM, ru_maxrss's figure, over every reset)."""
+    return max(_process_peak_mb, _status_mb("VmHWM"))
 
 
 def scale_section(sizes, lengths, cost):
@@ -131,12 +150,12 @@ def scale_section(sizes, lengths, cost):
                 print(f"| {h:,} | {n} | refused by the size check: {str(error).split(': the task ')[-1].split(':')[0]} "
                       "|", flush=True)
                 continue
-            first = first[0], first[4]  # the problem is dropped: one table alive at a time
-            seconds, _, problem, steps, cpu = plan_once(task, library, cost)
+            first = first[0], first[4], first[1]  # the problem is dropped: one table alive at a time
+            seconds, peak, problem, steps, cpu = plan_once(task, library, cost)
             s, planned = problem.stats, steps is not None
             del problem, steps
-            peak = plan_once(task, library, cost, memory=True)[1]
-            print(f"| {h:,} | {n} | {first[0]:.2f} ({first[1]:.2f}) | {seconds:.2f} ({cpu:.2f}) | {peak / 2**20:.0f} | "
+            print(f"| {h:,} | {n} | {first[0]:.2f} ({first[1]:.2f}) | {seconds:.2f} ({cpu:.2f}) | "
+                  f"{max(peak, first[2]):.0f} | "
                   f"{s.discarded_by_index / s.pairs:.2f} | {s.dropped_earlier / s.pairs:.2f} | "
                   f"{s.tested / s.pairs:.2f} | {'yes' if planned else 'no'} |", flush=True)
         print(f"(h = {h:,}: library generated in {made:.1f} s, prepared (stacks, index, demo terms) in {prepared:.2f} s "

@@ -276,22 +276,19 @@ class CompositionProblem:
         self.stats.tested += len(demos)
         last = l == self._first_start(k)
         n_max = self.library.rotations.shape[1]
-        total = np.empty((g_l, g_k, len(demos)))  # (g_l, g_k, s): the spans (l, k)
-        after = None if last else np.empty((g_k, len(demos), n_max))  # the next suffix minima
-        alive = 0
         step = max(1, _PAIRS_PER_CHUNK // (g_l * g_k * max(n_max, 1)))
+        totals, afters, alive = [], [], []
+        every = len(kept) == len(sweep.demos)  # the index kept the whole sweep: slices, no copies
         for start in range(0, len(demos), step):
             part = slice(start, start + step)
-            suffix = None if sweep.suffix is None else sweep.suffix[:, kept[part]]
+            suffix = None if sweep.suffix is None else sweep.suffix[:, part if every else kept[part]]
             chunk_total, chunk_after = self._row_chunk(rotations, translations, demos[part], suffix, g_l, g_k, last)
-            total[:, :, part] = chunk_total
+            totals.append(chunk_total)
             if chunk_after is not None:
                 keep = np.isfinite(chunk_after).any(axis=(0, 2))  # some allocation of deltas l..k-1 exists
-                count = int(keep.sum())
-                after[:, alive:alive + count] = chunk_after[:, keep]
-                demos_alive = demos[part][keep]
-                sweep.demos = demos_alive if start == 0 else np.concatenate([sweep.demos, demos_alive])
-                alive += count
+                afters.append(chunk_after if keep.all() else chunk_after[:, keep])
+                alive.append(demos[part][keep])
+        total = totals[0] if len(totals) == 1 else np.concatenate(totals, axis=-1)  # (g_l, g_k, s)
         legal = np.flatnonzero(np.isfinite(total).any(axis=(0, 1)))
         if len(legal):
             matrices = np.moveaxis(total[:, :, legal], -1, 0).copy()  # each (g_l, g_k) contiguous
@@ -302,8 +299,9 @@ class CompositionProblem:
         if last:
             sweep.finish(l)
             return
-        sweep.suffix = after[:, :alive] if alive == len(demos) else after[:, :alive].copy()
-        if alive == 0:
+        sweep.demos = alive[0] if len(alive) == 1 else np.concatenate(alive)
+        sweep.suffix = afters[0] if len(afters) == 1 else np.concatenate(afters, axis=1)
+        if len(sweep.demos) == 0:
             sweep.finish(self._first_start(k))
 
     def _row_chunk(self, rotations, translations, demos, suffix, g_l, g_k, last):
