@@ -390,8 +390,8 @@ class DemoDeltaTerms:
     short_length: NDArray[np.bool_]
 
     def take(self, rows: NDArray) -> "DemoDeltaTerms":
-        """The terms of the rows ``rows`` of the first axis (demonstrations of a padded
-        stack (h, n_max, ...)), flattened to one axis of deltas."""
+        """The terms of the rows ``rows`` (indices or a slice) of the first axis
+        (demonstrations of a padded stack (h, n_max, ...)), flattened to one axis of deltas."""
         units, short = self.directions
         return DemoDeltaTerms((units[rows].reshape(-1, 3), short[rows].reshape(-1)),
                               self.log_length[rows].reshape(-1), self.short_length[rows].reshape(-1))

@@ -312,13 +312,15 @@ class CompositionProblem:
         the same numbers as the whole."""
         lib = self.library
         n_max = lib.rotations.shape[1]
-        demo_q = lib.rotations[demos].reshape(-1, 4)
-        demo_t = lib.translations[demos].reshape(-1, 3)
+        # The sweep's demonstrations are in order: a run of consecutive ones is a slice (views, no copies).
+        rows = slice(int(demos[0]), int(demos[-1]) + 1) if demos[-1] - demos[0] == len(demos) - 1 else demos
+        demo_q = lib.rotations[rows].reshape(-1, 4)
+        demo_t = lib.translations[rows].reshape(-1, 3)
         demo_h = lib.excursions(demos).reshape(-1) if self.cost_mode == "fidelity" else np.zeros(len(demo_q))
-        pair, first = self._pair_costs(rotations, translations, demo_q, demo_t, demo_h, False, lib.terms.take(demos))
+        pair, first = self._pair_costs(rotations, translations, demo_q, demo_t, demo_h, False, lib.terms.take(rows))
         pair = pair.reshape(g_l, g_k, len(demos), n_max)
         if lib.padded:
-            pair[..., ~lib.valid[demos]] = np.inf
+            pair[..., ~lib.valid[rows]] = np.inf
         head = pair + first.reshape(pair.shape)
         if suffix is not None:
             head += suffix[None]
