@@ -7,18 +7,20 @@ one section: ``--section scale`` / ``issue`` / ``q``.
   own random motions (``core/synthetic_library.random_features``), chained tasks of 4,
   10, 25 and 50 configurations made from pieces of the library's own demonstrations
   (perturbed by up to 15 deg and 2 cm). The library is prepared first (stacks, KD-tree,
-  demo terms: once per library in a process, timed apart). For each cell, one task,
-  planned three times by the exact planner (legal-action table and solve, default
-  ``fidelity`` cost), wall and CPU seconds: the first plan (it also computes the suffix
-  excursions of the demonstrations it reaches for the first time), the repeated plan
-  (a new problem, the prepared library reused: what every later plan of that size
-  costs), the larger of the two plans' peak memory (the resident memory at its
-  highest during the plan above what the process held before: numpy's buffers, Python's
-  objects and the allocator's slack); then the fractions of (demonstration, span) pairs the index discarded, the sweep never
-  reached (no shorter allocation), and the exact test ran on. After each size, the
-  process's peak resident memory so far (VmHWM, what ru_maxrss reports: the generated
-  features, the prepared library and the plans) and the load average. Then, when
-  ``benchmarks/library_ops.py`` is present, the on-disk library's operation times.
+  demo terms: once per library in a process, timed apart). For each cell, the exact
+  planner (legal-action table and solve, default ``fidelity`` cost), wall and CPU
+  seconds: one task's first plan (it also computes the suffix excursions of the
+  demonstrations it reaches for the first time), its repeated plan (a new problem, the
+  prepared library reused: what every later plan of that size costs), and a second task
+  of the same size planned once (its pieces from other demonstrations, so its work
+  differs); the largest of the three plans' peak memory (the resident memory at its
+  highest during the plan above what the process held before: numpy's buffers,
+  Python's objects and the allocator's slack); the first task's fractions of
+  (demonstration, span) pairs the index discarded, the sweep never reached (no shorter
+  allocation) and the exact test ran on. After each size, the process's peak resident
+  memory so far (VmHWM, what ru_maxrss reports: the generated features, the prepared
+  library and the plans) and the load average. Then, when ``benchmarks/library_ops.py``
+  is present, the on-disk library's operation times.
 * ``issue``: the table of the issue: the paper's six demonstrations copied and rigidly
   turned to h = 6, 25, 100, chained tasks of n = 10, 25, 50, exact planner.
 * ``q``: the Q-learner against libraries of 6 to 1,000 demonstrations (each size in its
@@ -136,9 +138,9 @@ def _peak_rss_mb() -> float:
 
 def scale_section(sizes, lengths, cost):
     print(f"## planning (exact planner, {cost} cost; wall s with CPU s in brackets)")
-    print("| h | n | first plan | repeated plan | plan peak MB | discarded by index | not reached | tested "
-          "| planned |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| h | n | first plan | repeated plan | another task | plan peak MB | discarded by index | not reached "
+          "| tested | planned |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for h in sizes:
         library, made, _ = _seconds(lambda: random_features(np.random.default_rng(h), h))
         _, prepared, prepared_cpu = _seconds(lambda: prepared_library(list(library.values()), Tolerances()))
@@ -154,8 +156,11 @@ def scale_section(sizes, lengths, cost):
             seconds, peak, problem, steps, cpu = plan_once(task, library, cost)
             s, planned = problem.stats, steps is not None
             del problem, steps
+            other = plan_once(_task(library, n, 2 * n + 1), library, cost)
+            other = other[0], other[4], other[1], other[3] is not None
             print(f"| {h:,} | {n} | {first[0]:.2f} ({first[1]:.2f}) | {seconds:.2f} ({cpu:.2f}) | "
-                  f"{max(peak, first[2]):.0f} | "
+                  f"{other[0]:.2f} ({other[1]:.2f}){'' if other[3] else ' no plan'} | "
+                  f"{max(peak, first[2], other[2]):.0f} | "
                   f"{s.discarded_by_index / s.pairs:.2f} | {s.dropped_earlier / s.pairs:.2f} | "
                   f"{s.tested / s.pairs:.2f} | {'yes' if planned else 'no'} |", flush=True)
         print(f"(h = {h:,}: library generated in {made:.1f} s, prepared (stacks, index, demo terms) in {prepared:.2f} s "

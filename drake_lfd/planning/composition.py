@@ -22,8 +22,10 @@ of it (docs/method.rst, "Cost of planning"):
 * every task delta ``D_l* (x) D_k`` (Eq. 18) depends only on ``(l, a_l, k, a_k)``; for
   each end k the rows l = k-1, k-2, ... are swept backwards, each row's deltas going
   through ``fidelity.action_pair_costs`` (``similarity``'s test plus the cost mode's
-  fidelity terms) against every demo delta of the demonstrations still in the sweep, in
-  one call over the library's padded stacks (``span_index.PreparedLibrary``);
+  fidelity terms) against every demo delta of the demonstrations still in the sweep,
+  vectorized over chunks of the library's padded stacks (``span_index.PreparedLibrary``,
+  :data:`_PAIRS_PER_CHUNK` pair costs at a time, so the temporaries stay in the cache
+  and bounded whatever the library's size);
 * in a span, an intermediate con l's candidate affects only row l of the allocation,
   so the best choice is a per-demo-delta minimum over a_l; the order-preserving
   allocation (Definition 1) runs backwards as suffix minima, so one sweep per end

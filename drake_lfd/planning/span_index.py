@@ -3,9 +3,10 @@
 :class:`PreparedLibrary` holds what :class:`~drake_lfd.planning.composition.CompositionProblem`
 needs of a library and computes once per library (every trial of a task and every
 replan reuse it, :func:`prepared_library`): the demonstrations' deltas stacked into
-padded arrays ``(h, n_max, ...)``, so that one numpy call runs the similarity kernel on
-every demonstration at once, their suffix excursions (``core/fidelity.py``) and
-:class:`SpanIndex`.
+padded arrays ``(h, n_max, ...)``, so that numpy calls run the similarity kernel on many
+demonstrations at once, the demo side of every pair cost (``fidelity.DemoDeltaTerms``:
+unit translations, short flags, log lengths, computed once instead of once per row),
+their suffix excursions (``core/fidelity.py``) and :class:`SpanIndex`.
 
 :class:`SpanIndex` discards (demonstration, span) pairs that provably cannot pass the
 similarity test before the test runs. The bound (docs/method.rst, "Cost of planning"):
