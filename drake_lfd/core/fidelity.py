@@ -373,9 +373,10 @@ def _pair_terms(beta, task_rotations, task_translations, demo_components: list, 
 class DemoDeltaTerms:
     """What the pair costs need of demo deltas alone, computed once for every task delta
     they meet (``span_index.PreparedLibrary`` keeps a library's and gathers them per
-    chunk of demonstrations, so no row normalises a demo translation again).
+    chunk of demonstrations, so no row normalises a demo translation again). Each
+    attribute has the deltas' shape (...) leading.
 
-    Attributes (each of the deltas' shape (...) leading)
+    Attributes
     ----------
     directions : (units (..., 3), short (...))
         ``similarity.translation_directions`` of the translations (beta's inputs).
