@@ -101,12 +101,16 @@ _process_peak_mb = 0.0
 
 
 def _status_mb(field: str) -> float:
-    """A memory field of ``/proc/self/status`` in MB (``VmRSS``, ``VmHWM``)."""
-    with open("/proc/self/status") as status:
-        for line in status:
-            if line.startswith(field + ":"):
-                return int(line.split()[1]) / 1024
-    return float("nan")
+    """A memory field of ``/proc/self/status`` in MB (``VmRSS``, ``VmHWM``); without
+    it (not Linux), the process's ru_maxrss for both."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith(field + ":"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def _reset_peak() -> float:
@@ -114,8 +118,11 @@ def _reset_peak() -> float:
     next VmHWM is the peak of what follows; returns the resident memory now (MB)."""
     global _process_peak_mb
     _process_peak_mb = max(_process_peak_mb, _status_mb("VmHWM"))
-    with open("/proc/self/clear_refs", "w") as clear:
-        clear.write("5")  # resets VmHWM (and ru_maxrss) to the current resident memory
+    try:
+        with open("/proc/self/clear_refs", "w") as clear:
+            clear.write("5")  # resets VmHWM (and ru_maxrss) to the current resident memory
+    except OSError:  # not Linux: the peaks are then the process's since it started
+        pass
     return _status_mb("VmRSS")
 
 
