@@ -6,14 +6,21 @@ one section: ``--section scale`` / ``issue`` / ``q``.
 * ``scale``: generated libraries of 10, 100, 1,000 and 10,000 demonstrations with their
   own random motions (``core/synthetic_library.random_features``), chained tasks of 4,
   10, 25 and 50 configurations made from pieces of the library's own demonstrations
-  (perturbed by up to 15 deg and 2 cm). For each cell: the exact planner's time (legal
-  action table and solve, default ``fidelity`` cost) on the first task the process plans
-  with that library (it prepares the library: stacks, KD-tree, suffix excursions) and on
-  a second task of the same size (the prepared library reused), the peak memory of
-  that plan (tracemalloc, numpy's buffers included), and the fractions of
+  (perturbed by up to 15 deg and 2 cm). The library is prepared first (stacks, KD-tree,
+  demo terms: once per library in a process, timed apart). For each cell, the exact
+  planner (legal-action table and solve, default ``fidelity`` cost), wall and CPU
+  seconds: one task's first plan (it also computes the suffix excursions of the
+  demonstrations it reaches for the first time), its repeated plan (a new problem, the
+  prepared library reused: what every later plan of that size costs), and a second task
+  of the same size planned once (its pieces from other demonstrations, so its work
+  differs); the largest of the three plans' peak memory (the resident memory at its
+  highest during the plan above what the process held before: numpy's buffers,
+  Python's objects and the allocator's slack); the first task's fractions of
   (demonstration, span) pairs the index discarded, the sweep never reached (no shorter
-  allocation), and the exact test ran on. Then, when ``benchmarks/library_ops.py`` is
-  present, the on-disk library's operation times at each size.
+  allocation) and the exact test ran on. After each size, the process's peak resident
+  memory so far (VmHWM, what ru_maxrss reports: the generated features, the prepared
+  library and the plans) and the load average. Then, when ``benchmarks/library_ops.py``
+  is present, the on-disk library's operation times.
 * ``issue``: the table of the issue: the paper's six demonstrations copied and rigidly
   turned to h = 6, 25, 100, chained tasks of n = 10, 25, 50, exact planner.
 * ``q``: the Q-learner against libraries of 6 to 1,000 demonstrations (each size in its
@@ -30,13 +37,13 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
+import os
 import pathlib
 import resource
 import subprocess
 import sys
 import tempfile
 import time
-import tracemalloc
 
 import numpy as np
 
@@ -47,10 +54,12 @@ from drake_lfd.core.dual_quaternion import (
 )
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
+from drake_lfd.core.similarity import Tolerances
 from drake_lfd.core.synthetic_library import PAPER6, random_features, synthetic_demo_poses
 from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.planner import build_problem
 from drake_lfd.planning.random_tasks import chained_task
+from drake_lfd.planning.span_index import prepared_library
 
 __all__ = ["main", "turned_copies", "plan_once"]
 
@@ -75,20 +84,46 @@ def turned_copies(count: int, seed: int = 0) -> dict[str, Feature]:
     return copies
 
 
-def plan_once(task, library, cost="fidelity", memory=False):
-    """Builds the problem and plans exactly: (seconds, peak bytes or None, problem, steps,
-    CPU seconds of this process: on a loaded machine the wall time counts the waits)."""
-    if memory:
-        tracemalloc.start()
+def plan_once(task, library, cost="fidelity"):
+    """Builds the problem and plans exactly: (seconds, peak MB, problem, steps, CPU
+    seconds of this process: on a loaded machine the wall time counts the waits). The
+    peak is the process's resident memory at its highest during the plan above what it
+    held before (``/proc/self/status`` VmHWM after resetting it, where Linux allows)."""
+    rss = _reset_peak()
     start, start_cpu = time.perf_counter(), time.process_time()
     problem = build_problem(task, library, cost=cost)
     steps = plan_exact(problem)
     seconds, cpu = time.perf_counter() - start, time.process_time() - start_cpu
-    peak = None
-    if memory:
-        peak = tracemalloc.get_traced_memory()[1]
-        tracemalloc.stop()
-    return seconds, peak, problem, steps, cpu
+    return seconds, _status_mb("VmHWM") - rss, problem, steps, cpu
+
+
+_process_peak_mb = 0.0
+
+
+def _status_mb(field: str) -> float:
+    """A memory field of ``/proc/self/status`` in MB (``VmRSS``, ``VmHWM``); without
+    it (not Linux), the process's ru_maxrss for both."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith(field + ":"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def _reset_peak() -> float:
+    """Folds the peak so far into :func:`_peak_rss_mb`'s and resets the kernel's, so the
+    next VmHWM is the peak of what follows; returns the resident memory now (MB)."""
+    global _process_peak_mb
+    _process_peak_mb = max(_process_peak_mb, _status_mb("VmHWM"))
+    try:
+        with open("/proc/self/clear_refs", "w") as clear:
+            clear.write("5")  # resets VmHWM (and ru_maxrss) to the current resident memory
+    except OSError:  # not Linux: the peaks are then the process's since it started
+        pass
+    return _status_mb("VmRSS")
 
 
 def _task(library, n, seed):
@@ -96,30 +131,50 @@ def _task(library, n, seed):
                         perturbation_m=0.02, name=f"chained_{n}")[0]
 
 
+def _seconds(function):
+    """``function()``'s result with its wall and CPU seconds (this process's)."""
+    start, start_cpu = time.perf_counter(), time.process_time()
+    result = function()
+    return result, time.perf_counter() - start, time.process_time() - start_cpu
+
+
+def _peak_rss_mb() -> float:
+    """The process's peak resident memory so far (VmHWM, ru_maxrss's figure, over every reset)."""
+    return max(_process_peak_mb, _status_mb("VmHWM"))
+
+
 def scale_section(sizes, lengths, cost):
-    print(f"## planning (exact planner, {cost} cost)")
-    print("| h | n | first plan s | next plan s | next plan CPU s | peak MB | discarded by index | not reached | tested "
-          "| planned |")
+    print(f"## planning (exact planner, {cost} cost; wall s with CPU s in brackets)")
+    print("| h | n | first plan | repeated plan | another task | plan peak MB | discarded by index | not reached "
+          "| tested | planned |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for h in sizes:
-        start = time.perf_counter()
-        library = random_features(np.random.default_rng(h), h)
-        made = time.perf_counter() - start
+        library, made, _ = _seconds(lambda: random_features(np.random.default_rng(h), h))
+        _, prepared, prepared_cpu = _seconds(lambda: prepared_library(list(library.values()), Tolerances()))
         for n in lengths:
+            task = _task(library, n, 2 * n)
             try:
-                first = plan_once(_task(library, n, 2 * n), library, cost)[0]
+                first = plan_once(task, library, cost)
             except InputError as error:  # check_problem_size's refusal, before anything is allocated
-                print(f"| {h:,} | {n} | refused: {str(error).split(': the task ')[-1].split(':')[0]} |", flush=True)
+                print(f"| {h:,} | {n} | refused by the size check: {str(error).split(': the task ')[-1].split(':')[0]} "
+                      "|", flush=True)
                 continue
-            task = _task(library, n, 2 * n + 1)
-            seconds, _, problem, steps, cpu = plan_once(task, library, cost)
-            peak = plan_once(task, library, cost, memory=True)[1]
-            s = problem.stats
-            print(f"| {h:,} | {n} | {first:.2f} | {seconds:.2f} | {cpu:.2f} | {peak / 2**20:.0f} | "
+            first = first[0], first[4], first[1]  # the problem is dropped: one table alive at a time
+            seconds, peak, problem, steps, cpu = plan_once(task, library, cost)
+            s, planned = problem.stats, steps is not None
+            del problem, steps
+            other = plan_once(_task(library, n, 2 * n + 1), library, cost)
+            other = other[0], other[4], other[1], other[3] is not None
+            print(f"| {h:,} | {n} | {first[0]:.2f} ({first[1]:.2f}) | {seconds:.2f} ({cpu:.2f}) | "
+                  f"{other[0]:.2f} ({other[1]:.2f}){'' if other[3] else ' no plan'} | "
+                  f"{max(peak, first[2], other[2]):.0f} | "
                   f"{s.discarded_by_index / s.pairs:.2f} | {s.dropped_earlier / s.pairs:.2f} | "
-                  f"{s.tested / s.pairs:.2f} | {'yes' if steps else 'no'} |", flush=True)
-        print(f"(library of {h:,} generated in {made:.1f} s, not counted)", flush=True)
-    print(f"process peak resident memory: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+                  f"{s.tested / s.pairs:.2f} | {'yes' if planned else 'no'} |", flush=True)
+        print(f"(h = {h:,}: library generated in {made:.1f} s, prepared (stacks, index, demo terms) in {prepared:.2f} s "
+              f"({prepared_cpu:.2f} CPU), neither counted; process peak so far {_peak_rss_mb():.0f} MB; "
+              f"load average {os.getloadavg()[0]:.1f})", flush=True)
+        del library
+    print(f"process peak resident memory: {_peak_rss_mb():.0f} MB")
     library_operations(sizes)
 
 

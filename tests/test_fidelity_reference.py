@@ -69,7 +69,9 @@ def reference_fidelity_terms(beta, task_q, t, demo_q, demo_t, demo_h, weights, m
 
 
 def reference_action_pair_costs(task_q, task_t, demo_q, demo_t, demo_h, tolerances=Tolerances(), cost="paper",
-                                weights=fidelity.FidelityWeights(), tie_break=True):
+                                weights=fidelity.FidelityWeights(), tie_break=True, demo_terms=None):
+    """``demo_terms`` (the library's prepared demo side) is ignored: everything is
+    computed from the deltas themselves, as it was."""
     if cost == "paper" and not tie_break:
         alpha = pair_costs(task_q, task_t, demo_q, demo_t, tolerances)
         return alpha, np.zeros(alpha.shape)
@@ -132,6 +134,10 @@ def test_pair_costs_equal_the_reference(seed):
                         tie_break)
                 new, old = fidelity.action_pair_costs(*args), reference_action_pair_costs(*args)
                 assert np.array_equal(new[0], old[0]) and np.array_equal(new[1], old[1]), (seed, trial, cost)
+                # With the demo side prepared once (as a library keeps it): the same bits.
+                terms = fidelity.demo_delta_terms(demo_t, tolerances.min_translation_m)
+                prepared = fidelity.action_pair_costs(*args, demo_terms=terms)
+                assert np.array_equal(prepared[0], old[0]) and np.array_equal(prepared[1], old[1]), (seed, trial)
 
 
 def test_elementwise_terms_equal_the_reference():

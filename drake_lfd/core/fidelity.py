@@ -63,7 +63,13 @@ from drake_lfd.core.dual_quaternion import (
     translation_from_dual_quaternion,
 )
 from drake_lfd.core.features import Feature
-from drake_lfd.core.similarity import Tolerances, alpha_beta_matrices, pair_costs, similar_pair_costs
+from drake_lfd.core.similarity import (
+    Tolerances,
+    alpha_beta_matrices,
+    pair_costs,
+    similar_pair_costs,
+    translation_directions,
+)
 
 __all__ = [
     "COST_MODES",
@@ -74,6 +80,8 @@ __all__ = [
     "feature_excursions",
     "deltas_excursions",
     "fidelity_terms",
+    "DemoDeltaTerms",
+    "demo_delta_terms",
     "action_pair_costs",
 ]
 
@@ -295,14 +303,28 @@ def fidelity_terms(
         ``pair``: the weighted direction, stretch and anchor terms; ``first``: the
         weighted excursion, which counts only where the pair is the allocation's first.
     """
+    demo_q = np.asarray(demo_rotations, dtype=float)
+    log_length, short_length = _log_lengths(demo_translations, min_length_m)
+    return _pair_terms(beta, task_rotations, task_translations, [demo_q[..., c] for c in range(4)], log_length,
+                       short_length, demo_excursions, weights, min_length_m)
+
+
+def _log_lengths(translations: ArrayLike, min_length_m: float) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """``ln(max(|t|, min_length_m))`` (the stretch term's demo side) and ``|t| < min_length_m``."""
+    length = np.linalg.norm(np.asarray(translations, dtype=float), axis=-1)
+    return np.log(np.maximum(length, min_length_m)), length < min_length_m
+
+
+def _pair_terms(beta, task_rotations, task_translations, demo_components: list, demo_log_length, demo_short,
+                demo_excursions, weights: FidelityWeights, min_length_m: float
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`fidelity_terms` from the demo side's own parts: its rotations by component
+    (4 arrays), :func:`_log_lengths` and the excursions."""
     t = np.asarray(task_translations, dtype=float)
     task_q = np.asarray(task_rotations, dtype=float)
-    demo_q = np.asarray(demo_rotations, dtype=float)
     task_length = np.linalg.norm(t, axis=-1)
-    demo_length = np.linalg.norm(np.asarray(demo_translations, dtype=float), axis=-1)
-    demo_short = demo_length < min_length_m
     both_short = (task_length < min_length_m) & demo_short
-    log_ratio = np.log(np.maximum(task_length, min_length_m)) - np.log(np.maximum(demo_length, min_length_m))
+    log_ratio = np.log(np.maximum(task_length, min_length_m)) - demo_log_length
     direction = np.clip(np.asarray(beta, dtype=float), -1.0, 1.0)
     np.arccos(direction, out=direction)
     pair = weights.direction_per_rad * direction
@@ -315,7 +337,7 @@ def fidelity_terms(
         pair[both_short] = 0.0
     # Anchor: where the demo's rotation puts the pair's start, against the task's.
     v = [t[..., c] for c in range(3)]
-    start_demo = _rotated_by_conjugate([demo_q[..., c] for c in range(4)], v)
+    start_demo = _rotated_by_conjugate(demo_components, v)
     start_task = _rotated_by_conjugate([task_q[..., c] for c in range(4)], v)
     offset = [start_demo[c] - start_task[c] for c in range(3)]
     squared = offset[0] * offset[0]
@@ -347,6 +369,42 @@ def fidelity_terms(
     return pair, first
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class DemoDeltaTerms:
+    """What the pair costs need of demo deltas alone, computed once for every task delta
+    they meet (``span_index.PreparedLibrary`` keeps a library's and gathers them per
+    chunk of demonstrations, so no row normalises a demo translation again). Each
+    attribute has the deltas' shape (...) leading.
+
+    Attributes
+    ----------
+    directions : (units (..., 3), short (...))
+        ``similarity.translation_directions`` of the translations (beta's inputs).
+    log_length : array, shape (...)
+        ``ln(max(|t|, min_length_m))``, the stretch term's demo side.
+    short_length : array of bool, shape (...)
+        ``|t| < min_length_m`` by the norm the fidelity terms use.
+    """
+
+    directions: tuple[NDArray[np.float64], NDArray[np.bool_]]
+    log_length: NDArray[np.float64]
+    short_length: NDArray[np.bool_]
+
+    def take(self, rows: NDArray) -> "DemoDeltaTerms":
+        """The terms of the rows ``rows`` (indices or a slice) of the first axis
+        (demonstrations of a padded stack (h, n_max, ...)), flattened to one axis of deltas."""
+        units, short = self.directions
+        return DemoDeltaTerms((units[rows].reshape(-1, 3), short[rows].reshape(-1)),
+                              self.log_length[rows].reshape(-1), self.short_length[rows].reshape(-1))
+
+
+def demo_delta_terms(demo_translations: ArrayLike, min_length_m: float = Tolerances().min_translation_m
+                     ) -> DemoDeltaTerms:
+    """The :class:`DemoDeltaTerms` of demo deltas' translations (..., 3)."""
+    return DemoDeltaTerms(translation_directions(demo_translations, min_length_m),
+                          *_log_lengths(demo_translations, min_length_m))
+
+
 # Similar pairs whose fidelity terms are computed at once (bounds the temporaries,
 # about 300 bytes a pair, and keeps them in cache).
 _PAIRS_PER_BATCH = 1 << 15
@@ -362,6 +420,7 @@ def action_pair_costs(
     cost: str = "paper",
     weights: FidelityWeights = FidelityWeights(),
     tie_break: bool = True,
+    demo_terms: DemoDeltaTerms | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Allocation row costs of every (task delta, demo delta) pair in a cost mode.
 
@@ -379,6 +438,9 @@ def action_pair_costs(
         In the ``"paper"`` mode: add the fidelity terms times :data:`PAPER_TIE_WEIGHT`
         (to choose an allocation), or leave them out (for the action's cost: the pair
         costs are then Eq. 31's alpha exactly, ``similarity.pair_costs``).
+    demo_terms : DemoDeltaTerms, optional
+        :func:`demo_delta_terms` of the demo deltas (shape (n,)), when computed once for
+        many calls; the same numbers as without.
 
     Returns
     -------
@@ -391,19 +453,24 @@ def action_pair_costs(
         own terms are computed once.
     """
     if check_cost_mode(cost) == "paper" and not tie_break:
-        alpha = pair_costs(task_rotations, task_translations, demo_rotations, demo_translations, tolerances)
+        alpha = pair_costs(task_rotations, task_translations, demo_rotations, demo_translations, tolerances,
+                           None if demo_terms is None else demo_terms.directions)
         return alpha, np.zeros(alpha.shape)  # calloc: no memory until written
     factor = 1.0 if cost == "fidelity" else PAPER_TIE_WEIGHT
     task_q, task_t = np.asarray(task_rotations, dtype=float), np.asarray(task_translations, dtype=float)
     demo_q, demo_t = np.asarray(demo_rotations, dtype=float), np.asarray(demo_translations, dtype=float)
     demo_h = np.asarray(demo_excursions, dtype=float)
-    alpha, beta = alpha_beta_matrices(task_q, task_t, demo_q, demo_t, tolerances.min_translation_m)
+    if demo_terms is None:
+        demo_terms = demo_delta_terms(demo_t, tolerances.min_translation_m)
+    alpha, beta = alpha_beta_matrices(task_q, task_t, demo_q, demo_t, tolerances.min_translation_m,
+                                      demo_terms.directions)
     pair = similar_pair_costs(alpha, beta, tolerances)
     first = np.zeros(pair.shape)
     similar = np.flatnonzero(np.isfinite(pair))  # into pair.ravel()
     if len(similar) == 0:
         return pair, first
     pair_flat, first_flat, beta_flat = pair.reshape(-1), first.reshape(-1), beta.reshape(-1)
+    components = np.ascontiguousarray(demo_q.T)  # (4, n): each batch gathers contiguous rows
     n = pair.shape[1]
     for start in range(0, len(similar), _PAIRS_PER_BATCH):
         e = similar[start:start + _PAIRS_PER_BATCH]
@@ -412,8 +479,9 @@ def action_pair_costs(
         else:
             r, c = np.divmod(e, n)
             q, t = task_q[r], task_t[r]
-        terms, first_terms = fidelity_terms(beta_flat[e], q, t, demo_q[c], demo_t[c],
-                                            demo_h[c], weights, tolerances.min_translation_m)
+        terms, first_terms = _pair_terms(beta_flat[e], q, t, list(components[:, c]),
+                                         demo_terms.log_length[c], demo_terms.short_length[c], demo_h[c], weights,
+                                         tolerances.min_translation_m)
         if factor != 1.0:
             terms *= factor
             first_terms *= factor

@@ -35,6 +35,7 @@ __all__ = [
     "Allocation",
     "rotation_distance",
     "translation_cosine",
+    "translation_directions",
     "alpha_beta_matrices",
     "pair_costs",
     "similar_pair_costs",
@@ -131,15 +132,18 @@ def translation_cosine(t1: ArrayLike, t2: ArrayLike,
     -------
     beta : array, shape (...), in [-1, 1]
     """
-    units1, short1 = _units_and_short(t1, min_length_m)
-    units2, short2 = _units_and_short(t2, min_length_m)
+    units1, short1 = translation_directions(t1, min_length_m)
+    units2, short2 = translation_directions(t2, min_length_m)
     cosine = np.asarray(np.clip(np.sum(units1 * units2, axis=-1), -1.0, 1.0))
     return _apply_short_rule(cosine, short1, short2)
 
 
-def _units_and_short(translations: ArrayLike, min_length_m: float) -> tuple[NDArray, NDArray]:
-    """Unit directions (..., 3) and the short mask (...). A short vector is divided by
-    ``min_length_m`` instead: its direction is never used (the short rule decides)."""
+def translation_directions(translations: ArrayLike, min_length_m: float = MIN_TRANSLATION_M
+                           ) -> tuple[NDArray, NDArray]:
+    """Unit directions (..., 3) and the short mask (...) of translations (..., 3), as
+    :func:`alpha_beta_matrices` uses them. A short vector is divided by ``min_length_m``
+    instead: its direction is never used (the short rule decides). A library computes
+    its demonstrations' once (``demo_directions``) instead of once per task delta."""
     translations = np.asarray(translations, dtype=float)
     length = np.sqrt(np.einsum("...i,...i->...", translations, translations))
     short = length < min_length_m
@@ -162,6 +166,7 @@ def alpha_beta_matrices(
     demo_rotations: ArrayLike,
     demo_translations: ArrayLike,
     min_length_m: float = MIN_TRANSLATION_M,
+    demo_directions: tuple[NDArray, NDArray] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """alpha (Eq. 19) and beta (Eq. 20) of every (task delta, demo delta) pair.
 
@@ -180,6 +185,9 @@ def alpha_beta_matrices(
     demo_translations : array-like, shape (..., n, 3)
     min_length_m : float
         Translations shorter than this have no direction.
+    demo_directions : (units, short), optional
+        :func:`translation_directions` of ``demo_translations`` with ``min_length_m``,
+        when already computed (the same numbers).
 
     Leading dimensions broadcast between task and demo.
 
@@ -194,8 +202,10 @@ def alpha_beta_matrices(
     alpha += 2.0
     np.maximum(alpha, 0.0, out=alpha)
     np.sqrt(alpha, out=alpha)
-    task_units, task_short = _units_and_short(task_translations, min_length_m)
-    demo_units, demo_short = _units_and_short(demo_translations, min_length_m)
+    task_units, task_short = translation_directions(task_translations, min_length_m)
+    if demo_directions is None:
+        demo_directions = translation_directions(demo_translations, min_length_m)
+    demo_units, demo_short = demo_directions
     beta = task_units @ np.swapaxes(demo_units, -1, -2)
     np.clip(beta, -1.0, 1.0, out=beta)
     _apply_short_rule(beta, task_short[..., :, None], demo_short[..., None, :])
@@ -208,14 +218,16 @@ def pair_costs(
     demo_rotations: ArrayLike,
     demo_translations: ArrayLike,
     tolerances: Tolerances = Tolerances(),
+    demo_directions: tuple[NDArray, NDArray] | None = None,
 ) -> NDArray[np.float64]:
     """Cost of pairing each task delta with each demo delta: alpha where the pair is
     similar (``alpha <= d_alpha`` and ``beta >= d_beta``, Eq. 19-21), inf where not.
 
-    Shapes as in :func:`alpha_beta_matrices`; returns an array of shape (..., p, n).
+    Shapes and ``demo_directions`` as in :func:`alpha_beta_matrices`; returns an array
+    of shape (..., p, n).
     """
     alpha, beta = alpha_beta_matrices(task_rotations, task_translations, demo_rotations,
-                                      demo_translations, tolerances.min_translation_m)
+                                      demo_translations, tolerances.min_translation_m, demo_directions)
     return similar_pair_costs(alpha, beta, tolerances)
 
 

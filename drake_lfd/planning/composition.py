@@ -22,8 +22,10 @@ of it (docs/method.rst, "Cost of planning"):
 * every task delta ``D_l* (x) D_k`` (Eq. 18) depends only on ``(l, a_l, k, a_k)``; for
   each end k the rows l = k-1, k-2, ... are swept backwards, each row's deltas going
   through ``fidelity.action_pair_costs`` (``similarity``'s test plus the cost mode's
-  fidelity terms) against every demo delta of the demonstrations still in the sweep, in
-  one call over the library's padded stacks (``span_index.PreparedLibrary``);
+  fidelity terms) against every demo delta of the demonstrations still in the sweep,
+  vectorized over chunks of the library's padded stacks (``span_index.PreparedLibrary``,
+  :data:`_PAIRS_PER_CHUNK` pair costs at a time, so the temporaries stay in the cache
+  and bounded whatever the library's size);
 * in a span, an intermediate con l's candidate affects only row l of the allocation,
   so the best choice is a per-demo-delta minimum over a_l; the order-preserving
   allocation (Definition 1) runs backwards as suffix minima, so one sweep per end
@@ -65,6 +67,10 @@ __all__ = ["SUFFIX_SEPARATION", "Step", "SpanAllocation", "TableStats", "Composi
 # Alternative suffixes of one span (:meth:`CompositionProblem.suffix_candidates`) start at
 # least this many resampled samples apart (a tenth of a 100-sample demonstration).
 SUFFIX_SEPARATION = 10
+# Pair costs of one row computed at once (a chunk of the library's demonstrations): bounds
+# the kernel's temporaries and keeps them in the processor's cache (measured at h = 10,000:
+# 2^14-2^16 pair costs 3.0-3.3 s of CPU for the table, 2^17 and more 5.8-7.4 s).
+_PAIRS_PER_CHUNK = 1 << 15
 
 
 @dataclasses.dataclass(frozen=True)
@@ -221,12 +227,12 @@ class CompositionProblem:
         return keys
 
     def _pair_costs(self, rotations, translations, demo_rotations, demo_translations, demo_excursions,
-                    tie_break):
+                    tie_break, demo_terms=None):
         """``fidelity.action_pair_costs`` in this problem's cost mode: (pair, first).
         ``tie_break``: for choosing an allocation (in the paper mode, the action costs
-        are Eq. 31's alpha alone)."""
+        are Eq. 31's alpha alone); ``demo_terms``: the demo deltas' prepared terms."""
         return action_pair_costs(rotations, translations, demo_rotations, demo_translations, demo_excursions,
-                                 self.tolerances, self.cost_mode, self.fidelity_weights, tie_break)
+                                 self.tolerances, self.cost_mode, self.fidelity_weights, tie_break, demo_terms)
 
     def _extend(self, k: int, j: int) -> None:
         """Sweeps span end k down to start j (see :meth:`_sweep_step`)."""
@@ -261,47 +267,75 @@ class CompositionProblem:
         k, l = sweep.k, sweep.low - 1
         sweep.low = l
         g_l, g_k = self.num_candidates[l], self.num_candidates[k]
-        lib = self.library
         delta = dual_quaternion_relative(self.candidate_poses[l][:, None, :],
                                          self.candidate_poses[k][None, :, :]).reshape(-1, 8)
         rotations, translations = delta[:, :4], translation_from_dual_quaternion(delta)
-        keep = self._index_keeps(sweep, rotations, translations, k - l)
-        demos = sweep.demos[keep]
-        suffix = None if sweep.suffix is None else sweep.suffix[:, keep]
+        kept = np.flatnonzero(self._index_keeps(sweep, rotations, translations, k - l))
+        demos = sweep.demos[kept]
         if len(demos) == 0:
             sweep.finish(self._first_start(k))
             return
         self.stats.tested += len(demos)
+        last = l == self._first_start(k)
+        n_max = self.library.rotations.shape[1]
+        step = max(1, _PAIRS_PER_CHUNK // (g_l * g_k * max(n_max, 1)))
+        totals, afters, alive = [], [], []
+        every = len(kept) == len(sweep.demos)  # the index kept the whole sweep: slices, no copies
+        for start in range(0, len(demos), step):
+            part = slice(start, start + step)
+            suffix = None if sweep.suffix is None else sweep.suffix[:, part if every else kept[part]]
+            chunk_total, chunk_after = self._row_chunk(rotations, translations, demos[part], suffix, g_l, g_k, last)
+            totals.append(chunk_total)
+            if chunk_after is not None:
+                keep = np.isfinite(chunk_after).any(axis=(0, 2))  # some allocation of deltas l..k-1 exists
+                afters.append(chunk_after if keep.all() else chunk_after[:, keep])
+                alive.append(demos[part][keep])
+        total = totals[0] if len(totals) == 1 else np.concatenate(totals, axis=-1)  # (g_l, g_k, s)
+        legal = np.flatnonzero(np.isfinite(total).any(axis=(0, 1)))
+        if len(legal):
+            matrices = np.moveaxis(total[:, :, legal], -1, 0).copy()  # each (g_l, g_k) contiguous
+            matrices.flags.writeable = False  # shared by the row's entries: forbidding replaces one
+            found = demos[legal].tolist()
+            self._cost.update(zip([(l, k, d) for d in found], matrices))
+            self._built[l].extend([(k, d) for d in found])
+        if last:
+            sweep.finish(l)
+            return
+        sweep.demos = alive[0] if len(alive) == 1 else np.concatenate(alive)
+        sweep.suffix = afters[0] if len(afters) == 1 else np.concatenate(afters, axis=1)
+        if len(sweep.demos) == 0:
+            sweep.finish(self._first_start(k))
+
+    def _row_chunk(self, rotations, translations, demos, suffix, g_l, g_k, last):
+        """Row l of one span end for the demonstrations ``demos`` (c,): the spans' costs
+        (g_l, g_k, c) and, unless ``last``, the suffix minima ``after`` (g_k, c, n_max)
+        for the longer spans; ``suffix`` (g_k, c, n_max) those of row l + 1 (None on the
+        first row). Every operation is per demonstration, so chunks of the library give
+        the same numbers as the whole."""
+        lib = self.library
         n_max = lib.rotations.shape[1]
-        every = len(demos) == self.num_demos
-        demo_q = (lib.rotations if every else lib.rotations[demos]).reshape(-1, 4)
-        demo_t = (lib.translations if every else lib.translations[demos]).reshape(-1, 3)
+        # The sweep's demonstrations are in order: a run of consecutive ones is a slice (views, no copies).
+        rows = slice(int(demos[0]), int(demos[-1]) + 1) if demos[-1] - demos[0] == len(demos) - 1 else demos
+        demo_q = lib.rotations[rows].reshape(-1, 4)
+        demo_t = lib.translations[rows].reshape(-1, 3)
         demo_h = lib.excursions(demos).reshape(-1) if self.cost_mode == "fidelity" else np.zeros(len(demo_q))
-        pair, first = self._pair_costs(rotations, translations, demo_q, demo_t, demo_h, tie_break=False)
+        pair, first = self._pair_costs(rotations, translations, demo_q, demo_t, demo_h, False, lib.terms.take(rows))
         pair = pair.reshape(g_l, g_k, len(demos), n_max)
         if lib.padded:
-            pair[..., ~lib.valid[demos]] = np.inf
+            pair[..., ~lib.valid[rows]] = np.inf
         head = pair + first.reshape(pair.shape)
         if suffix is not None:
             head += suffix[None]
-        total = head.min(axis=-1)  # (g_l, g_k, s)
-        for s in np.flatnonzero(np.isfinite(total).any(axis=(0, 1))).tolist():
-            d = int(demos[s])
-            self._cost[(l, k, d)] = np.ascontiguousarray(total[:, :, s])
-            self._built[l].append((k, d))
-        if l == self._first_start(k):
-            sweep.finish(l)
-            return
-        reduced = pair.min(axis=0)  # (g_k, s, n): intermediate con l, its best candidate per delta
+        total = head.min(axis=-1)  # (g_l, g_k, c)
+        if last:
+            return total, None
+        reduced = pair.min(axis=0)  # (g_k, c, n): intermediate con l, its best candidate per delta
         if suffix is not None:
             reduced += suffix
         after = np.full(reduced.shape, np.inf)  # after[..., i] = min over i' > i
         if n_max > 1:
             after[..., :-1] = np.minimum.accumulate(reduced[..., :0:-1], axis=-1)[..., ::-1]
-        alive = np.isfinite(after).any(axis=(0, 2))
-        sweep.demos, sweep.suffix = demos[alive], after[:, alive]
-        if len(sweep.demos) == 0:
-            sweep.finish(self._first_start(k))
+        return total, after
 
     # -- queries -------------------------------------------------------------------------
     def row(self, j: int) -> list[tuple[int, int, np.ndarray]]:

@@ -3,9 +3,10 @@
 :class:`PreparedLibrary` holds what :class:`~drake_lfd.planning.composition.CompositionProblem`
 needs of a library and computes once per library (every trial of a task and every
 replan reuse it, :func:`prepared_library`): the demonstrations' deltas stacked into
-padded arrays ``(h, n_max, ...)``, so that one numpy call runs the similarity kernel on
-every demonstration at once, their suffix excursions (``core/fidelity.py``) and
-:class:`SpanIndex`.
+padded arrays ``(h, n_max, ...)``, so that numpy calls run the similarity kernel on many
+demonstrations at once, the demo side of every pair cost (``fidelity.DemoDeltaTerms``:
+unit translations, short flags, log lengths, computed once instead of once per row),
+their suffix excursions (``core/fidelity.py``) and :class:`SpanIndex`.
 
 :class:`SpanIndex` discards (demonstration, span) pairs that provably cannot pass the
 similarity test before the test runs. The bound (docs/method.rst, "Cost of planning"):
@@ -52,7 +53,7 @@ from numpy.typing import NDArray
 
 from drake_lfd.core.dual_quaternion import IDENTITY_DUAL_QUATERNION
 from drake_lfd.core.features import Feature
-from drake_lfd.core.fidelity import deltas_excursions
+from drake_lfd.core.fidelity import demo_delta_terms, deltas_excursions
 from drake_lfd.core.similarity import Tolerances, rotation_distance
 
 __all__ = ["BLOCK_DELTAS", "ALPHA_MARGIN", "SpanIndex", "PreparedLibrary", "prepared_library"]
@@ -167,6 +168,9 @@ class PreparedLibrary:
         Whether any demonstration is shorter than ``n_max`` (the kernel's results at the
         padding must then be made inf).
     index : SpanIndex
+    terms : fidelity.DemoDeltaTerms
+        The demo side of every pair cost (translation directions and log lengths),
+        shape (h, n_max): computed once, gathered per chunk of a row.
     """
 
     def __init__(self, features: Sequence[Feature], tolerances: Tolerances):
@@ -182,6 +186,7 @@ class PreparedLibrary:
         self.valid = np.arange(n_max)[None, :] < self.lengths[:, None]
         short = np.linalg.norm(self.translations, axis=-1) < tolerances.min_translation_m
         self.index = SpanIndex(self.rotations, short, self.lengths, tolerances)
+        self.terms = demo_delta_terms(self.translations, tolerances.min_translation_m)
         self._excursions = np.zeros((h, n_max))
         self._has_excursions = np.zeros(h, dtype=bool)
 
