@@ -48,6 +48,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
 
 from drake_lfd.core.features import Feature
+from drake_lfd.core.similarity import Tolerances
 from drake_lfd.core.tasks import Box, ConcreteTask
 from drake_lfd.core.timing import TimedPlan
 from drake_lfd.io.simulation_config import COMPILED_METHOD, PipelineConfig
@@ -55,6 +56,7 @@ from drake_lfd.diagrams.station import Station
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan
+from drake_lfd.planning.span_index import prepared_library
 from drake_lfd.robot.joint_path import JointPathChecker, JointPathLimits
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME
 from drake_lfd.robot.scene import KinematicScene
@@ -221,6 +223,10 @@ class Pipeline(Diagram):
                 # nothing to check for during it.
                 check_period=None if self.compiled else config.planner.check_period, cost=cost, refine=refine))
             plan_port = self.planner.plan_output_port
+            # The library prepared for the legal-action table (its stacks, its span index
+            # and the index's one-time scipy.spatial import) is built with the Diagram,
+            # not in the first trial's plan; every plan of these features reuses it.
+            prepared_library(list(features.values()), Tolerances())
         else:
             constant = builder.AddNamedSystem("given_plan", ConstantValueSource(
                 AbstractValue.Make(scheduled_plan_from_timed(plan, config.settle_s))))
