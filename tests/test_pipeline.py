@@ -142,3 +142,26 @@ def test_planner_system_replans_for_another_library_of_the_same_revision():
     assert dut.plan_now(context).result.status == "demonstration_requested"
     dut.library_input_port.FixValue(context, LibraryFeatures(library_features(Library.open("paper6"))))
     assert dut.plan_now(context).planned  # both are revision 0: their contents tell them apart
+
+
+def test_the_library_is_prepared_when_the_pipeline_is_built_not_in_the_first_plan(monkeypatch):
+    # The legal-action table's prepared library (stacks, span index, the index's
+    # scipy.spatial import) is built with the Diagram; the first plan reuses it.
+    from drake_lfd.planning import span_index
+
+    task = load_task(SIMS / "transferring.yaml")
+    # New feature objects: nothing of them is in the prepared libraries' cache yet.
+    features = {name: dataclasses.replace(feature) for name, feature in library_features(Library.open("paper5")).items()}
+    built = []
+    original = span_index.PreparedLibrary.__init__
+
+    def counting(self, *args, **kwargs):
+        built.append(self)
+        original(self, *args, **kwargs)
+
+    monkeypatch.setattr(span_index.PreparedLibrary, "__init__", counting)
+    runner = ClosedLoopRunner(build_pipeline(task, features, joint_check=False))
+    assert len(built) == 1
+    scheduled = runner.plan(draw_trial(task, 0))
+    assert scheduled.result.planned
+    assert len(built) == 1
