@@ -139,6 +139,15 @@ def test_exact_keys_and_the_memo_bound():
         ExactMemo(maxsize=0)
 
 
+def test_a_result_the_memo_is_told_not_to_keep_is_returned_and_computed_again():
+    memo = ExactMemo(maxsize=4)
+    calls = []
+    for _ in range(2):
+        assert memo.get("x", lambda: calls.append("x") or -1, keep=lambda result: result >= 0) == -1
+    assert calls == ["x", "x"] and len(memo) == 0
+    assert memo.get("y", lambda: 1, keep=lambda result: result >= 0) == 1 and len(memo) == 1
+
+
 def _checker_and_floor(task):
     table = table_under_robot(task.X_WB)
     scene = KinematicScene(X_WB=task.X_WB, X_tool0_E=task.X_tool0_E, obstacles=task.obstacles,

@@ -54,9 +54,10 @@ class ExactMemo:
         self.hits = 0
         self.misses = 0
 
-    def get(self, key: Hashable, compute: Callable[[], Any]) -> Any:
-        """The result remembered for ``key``, else ``compute()`` (remembered; an
-        exception it raises is not)."""
+    def get(self, key: Hashable, compute: Callable[[], Any],
+            keep: Callable[[Any], bool] | None = None) -> Any:
+        """The result remembered for ``key``, else ``compute()`` (remembered unless
+        ``keep(result)`` is false; an exception it raises is not)."""
         with self._lock:
             if key in self._results:
                 self._results.move_to_end(key)
@@ -64,6 +65,8 @@ class ExactMemo:
                 return self._results[key]
             self.misses += 1
         result = compute()
+        if keep is not None and not keep(result):
+            return result
         with self._lock:
             self._results[key] = result
             while len(self._results) > self.maxsize:

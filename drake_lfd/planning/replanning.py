@@ -101,11 +101,16 @@ class ScheduledPlan:
     @property
     def trajectory(self) -> PiecewisePose | None:
         """The pose trajectory of E in W over plan time (None for a request)."""
+        return self._built()[0]
+
+    def _built(self) -> tuple:
+        """The pose trajectory and its derivative, built on first use (both None for a
+        request)."""
         if self._trajectory is None and self.result.timed is not None:
             trajectory = self.result.timed.to_piecewise_pose()
             object.__setattr__(self, "_trajectory", trajectory)
             object.__setattr__(self, "_velocity", trajectory.MakeDerivative())
-        return self._trajectory
+        return self._trajectory, self._velocity
 
     @property
     def end_time_s(self) -> float:
@@ -123,7 +128,7 @@ class ScheduledPlan:
 
     def X_WE_desired(self, t: float) -> RigidTransform:
         """Desired pose of E at simulation time ``t`` (held before and after the plan)."""
-        return self.trajectory.GetPose(min(max(t - self.start_time_s, 0.0), self._duration_s))
+        return self.trajectory.GetPose(self.plan_time(t))
 
     def V_WE_desired(self, t: float) -> np.ndarray:
         """Desired spatial velocity ``[omega, v]`` of E at ``t``, shape (6,); zero
@@ -131,9 +136,7 @@ class ScheduledPlan:
         tau = t - self.start_time_s
         if tau <= 0.0 or tau >= self._duration_s:
             return np.zeros(6)
-        if self._velocity is None:
-            self.trajectory  # builds it
-        return self._velocity.value(tau)[:, 0]
+        return self._built()[1].value(tau)[:, 0]
 
 
 def task_fingerprint(task: ConcreteTask) -> bytes:

@@ -511,24 +511,12 @@ def optimize_joint_trajectory(
     solved = []
 
     def solve():
-        solved.append(_solve(scene, guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget))
-        if solved[0].safety_stopped:  # it depends on the clock: not remembered
-            raise _Unremembered(solved[0])
-        return solved[0]
+        solved.append(True)
+        return _solve(scene, guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget)
 
-    try:
-        answer = scene.solutions.get(key, solve)
-    except _Unremembered as stopped:
-        return stopped.answer
+    # A safety-stopped solve depends on the clock: returned, not remembered.
+    answer = scene.solutions.get(key, solve, keep=lambda answer: not answer.safety_stopped)
     return answer if solved else dataclasses.replace(answer, solve_time_s=0.0)
-
-
-class _Unremembered(Exception):
-    """Carries an answer out of the memo without it being remembered."""
-
-    def __init__(self, answer: OptimizedTrajectory):
-        super().__init__(answer.status)
-        self.answer = answer
 
 
 def _numbers(values) -> tuple:
