@@ -191,17 +191,24 @@ class DifferentialIKLaw:
         fraction of its cost. Plain Python floats: for six numbers they beat numpy's
         per-call overhead.
         """
+        v = self.closed_form_step(np.asarray(q_command, dtype=float).tolist(), J, V)
+        return None if v is None else np.array(v)
+
+    def closed_form_step(self, q_command: list, J, V) -> list | None:
+        """:meth:`closed_form_qp_solution` on plain lists: ``q_command`` six floats,
+        ``J`` and ``V`` arrays or nested lists; the joint velocity as a list, or None."""
+        J = np.asarray(J, dtype=float)
         if J.shape[0] != J.shape[1]:
             return None
         try:
-            u = np.linalg.solve(J, V)
+            u = np.linalg.solve(J, np.asarray(V, dtype=float)).tolist()
         except np.linalg.LinAlgError:
             return None  # singular: the QP handles the nullspace
         alpha, binding, kind = 1.0, -1, ""
         dt = self.time_step
         for j, (u_j, limit, lower, upper, q_j) in enumerate(zip(
-            u.tolist(), self._velocity_limit_list, self._position_lower_list, self._position_upper_list,
-            np.asarray(q_command).tolist(),
+            u, self._velocity_limit_list, self._position_lower_list, self._position_upper_list,
+            q_command,
         )):
             if q_j > upper or q_j < lower:
                 return None  # the command is outside the limits: let the QP report it
@@ -217,4 +224,4 @@ class DifferentialIKLaw:
                 alpha, binding, kind = position, j, "position"
         alpha = max(alpha, 0.0)
         self.last_scale = (alpha, binding, kind)
-        return alpha * u
+        return [alpha * u_j for u_j in u]

@@ -54,9 +54,17 @@ from collections import OrderedDict
 from collections.abc import Sequence
 
 import numpy as np
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RotationMatrix
 
-from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
+from drake_lfd.core.dual_quaternion import (
+    matrices_from_dual_quaternion,
+    quaternion_conjugate,
+    quaternion_from_rotation_vector,
+    quaternion_multiply,
+    rotation_from_dual_quaternion,
+    rotation_vector_from_quaternion,
+    translation_from_dual_quaternion,
+)
 from drake_lfd.core.exact_memo import ExactMemo
 from drake_lfd.core.timing import TimedPlan
 from drake_lfd.robot.differential_ik_law import (
@@ -68,7 +76,14 @@ from drake_lfd.robot.differential_ik_law import (
 )
 from drake_lfd.robot.analytic_ik import UR5E_DH_A, UR5E_DH_D
 from drake_lfd.robot.initial_ik import UnreachableConfigurationError, initial_configuration_candidates
-from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, UR5E_JOINT_NAMES, UR5eKinematics
+from drake_lfd.robot.dh_kinematics import DHArm, rotation_error, rotation_matrices
+from drake_lfd.robot.kinematics import (
+    BASE_FRAME_NAME,
+    END_EFFECTOR_FRAME_NAME,
+    TOOL0_FRAME_NAME,
+    UR5E_JOINT_NAMES,
+    UR5eKinematics,
+)
 from drake_lfd.robot.motion_bounds import motion_bounds
 from drake_lfd.robot.scene import KinematicScene
 
@@ -309,6 +324,15 @@ class JointPathChecker:
         self._table_ids = set(table_ids)
         self._scene_graph_context = scene.scene_graph.GetMyContextFromRoot(scene.context)
         self._lower = self.law.position_lower
+        # The arm's DH kinematics in its base frame B (the plant's own base and E frames).
+        context = plant.CreateDefaultContext()
+        X_WB_plant = plant.CalcRelativeTransform(context, plant.world_frame(),
+                                                 plant.GetFrameByName(BASE_FRAME_NAME, scene.model))
+        X_tool0_E = plant.CalcRelativeTransform(context, plant.GetFrameByName(TOOL0_FRAME_NAME, scene.model),
+                                                plant.GetFrameByName(END_EFFECTOR_FRAME_NAME))
+        self._arm = DHArm(X_tool0_E)
+        self._R_BW = X_WB_plant.rotation().matrix().T
+        self._p_WB = X_WB_plant.translation()
         self._upper = self.law.position_upper
 
     @functools.cached_property
@@ -343,8 +367,6 @@ class JointPathChecker:
         record, checkpoint = self._reusable(q_start, critical_indices, plan_times, plan_poses)
         if checkpoint is None and record is not None:
             return record.path  # the same plan from the same start
-        trajectory = plan.to_piecewise_pose()
-        velocity = trajectory.MakeDerivative()
         duration = plan.duration
         due = [float(plan.times[i]) for i in critical_indices]
         X_cons = [RigidTransform(T) for T in matrices_from_dual_quaternion(plan.poses[list(critical_indices)])]
@@ -355,11 +377,11 @@ class JointPathChecker:
         checkpoints: dict[int, _Checkpoint] = {}
         if checkpoint is None:
             first = 0
-            q = q_start.copy()
+            q = q_start.tolist()
             times, path, clearances, critical_errors = [], [], [], []
             wake = np.full(len(self._pairs), -np.inf)
-            travel = np.zeros(len(q))
-            q_previous = q.tolist()
+            travel = [0.0] * len(q)
+            q_previous = q
             slack = -math.inf
             min_clearance, min_elbow, min_wrist, min_shoulder = math.inf, math.inf, math.inf, math.inf
             span, next_con = 0, 0
@@ -368,28 +390,28 @@ class JointPathChecker:
             old = record.path
             times, path, clearances = list(old.t[:first]), list(old.q[:first]), list(old.clearances[:first])
             critical_errors = list(checkpoint.critical_errors)
-            q, wake, travel = checkpoint.q.copy(), checkpoint.wake.copy(), checkpoint.travel.copy()
+            q, wake, travel = checkpoint.q.tolist(), checkpoint.wake.copy(), checkpoint.travel.tolist()
             q_previous, slack = list(checkpoint.q_previous), checkpoint.slack
             min_clearance, min_elbow, min_wrist, min_shoulder = checkpoint.minima
             span, next_con = checkpoint.span, checkpoint.next_con
             checkpoints = {c: point for c, point in record.checkpoints.items() if c <= checkpoint.con}
         blocker = None
         lower, upper = self._lower.tolist(), self._upper.tolist()
-        # The desired spatial velocity at every step, in one call (the same values).
-        V_all = velocity.vector_values(np.minimum(np.arange(first, steps + 1) * dt, duration))
+        # The desired pose and spatial velocity at every step, in B, in a few calls.
+        desired = self._desired_in_base(plan, np.arange(first, steps + 1) * dt)
         for k in range(first, steps + 1):
             if k in checkpoint_at and k > first:
                 c = checkpoint_at[k]
-                checkpoints[c] = _Checkpoint(c, k, q.copy(), wake.copy(), travel.copy(), tuple(q_previous), slack,
+                checkpoints[c] = _Checkpoint(c, k, np.array(q), wake.copy(), np.array(travel), tuple(q_previous), slack,
                                              (min_clearance, min_elbow, min_wrist, min_shoulder), span, next_con,
                                              tuple(critical_errors))
             t = k * dt
             times.append(t)
-            path.append(q.copy())
+            path.append(q)
             while span < len(due) - 2 and due[span + 1] <= t:
                 span += 1
             # Singularities.
-            q_list = q.tolist()
+            q_list = q
             elbow, wrist = abs(math.sin(q_list[2])), abs(math.sin(q_list[4]))
             shoulder = abs(shoulder_singularity_distance(q_list))
             min_elbow, min_wrist, min_shoulder = min(min_elbow, elbow), min(min_wrist, wrist), min(min_shoulder, shoulder)
@@ -407,10 +429,10 @@ class JointPathChecker:
             # steps skip the per-pair bookkeeping).
             step_travel = [abs(a - b) for a, b in zip(q_list, q_previous)]
             q_previous = q_list
-            travel += step_travel
+            travel = [a + b for a, b in zip(travel, step_travel)]
             slack -= sum(r * d for r, d in zip(self._max_bounds, step_travel))
             if slack <= 0.0 or self._any_unbounded:
-                clearance, pair, slack = self._clearance(q, travel, wake)
+                clearance, pair, slack = self._clearance(q, np.array(travel), wake)
             else:
                 clearance, pair = math.inf, None
             clearances.append(clearance)
@@ -425,16 +447,12 @@ class JointPathChecker:
                                   t, span)
                 break
             # Tracking: along the path, and at each critical configuration when due.
-            tau = min(t, duration)
-            X_desired = trajectory.GetPose(tau)
-            V_desired = V_all[:, k - first] if t < duration else np.zeros(6)
             # The step's law evaluates E's pose error at q: the tracking error.
-            v = law.joint_velocity(q, q, X_desired, V_desired)
-            e = law.last_pose_error.tolist()
+            v, e = self._law_step(q, desired, k - first)
             position = math.sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5])
             rotation = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
             while next_con < len(due) and due[next_con] <= t + 1e-9:
-                con_error = pose_error(X_cons[next_con], law.X_WE(q))
+                con_error = pose_error(X_cons[next_con], law.X_WE(np.array(q)))
                 c_position, c_rotation = float(np.linalg.norm(con_error[3:])), float(np.linalg.norm(con_error[:3]))
                 critical_errors.append((c_position, c_rotation))
                 if c_position > limits.position_tolerance_m or c_rotation > limits.rotation_tolerance_rad:
@@ -452,8 +470,8 @@ class JointPathChecker:
             if k == steps:
                 break
             # One controller step (measured = commanded: kinematic).
-            q = q + dt * v
-            outside = [j for j, (x, a, b) in enumerate(zip(q.tolist(), lower, upper)) if x < a - 1e-9 or x > b + 1e-9]
+            q = [x + dt * v_j for x, v_j in zip(q, v)]
+            outside = [j for j, (x, a, b) in enumerate(zip(q, lower, upper)) if x < a - 1e-9 or x > b + 1e-9]
             if outside:
                 blocker = Blocker("joint_limit", f"{UR5E_JOINT_NAMES[outside[0]]} reaches its limit", t, span)
                 break
@@ -462,6 +480,60 @@ class JointPathChecker:
                            min_clearance, min_elbow, min_wrist, min_shoulder, clearances=np.array(clearances))
         self._remember(_FollowRecord(q_start.tobytes(), critical_indices, plan_times, plan_poses, result, checkpoints))
         return result
+
+    def _desired_in_base(self, plan: TimedPlan, t: np.ndarray) -> tuple:
+        """The plan at times ``t``, in the base frame B, as lists per sample: E's
+        rotation (rows), position and spatial velocity (zero from the plan's end on);
+        and the same in W as arrays ``(R (m, 3, 3), p (m, 3), V (m, 6))`` for the law's
+        fallback. The plan is linear in position and slerped in rotation between its
+        samples (:meth:`~drake_lfd.core.timing.TimedPlan.to_piecewise_pose`, evaluated
+        here in numpy: equal to Drake's to 1e-15)."""
+        times = np.asarray(plan.times, dtype=float)
+        p_samples = translation_from_dual_quaternion(plan.poses)
+        r_samples = rotation_from_dual_quaternion(plan.poses)
+        tau = np.minimum(t, plan.duration)
+        if len(times) < 2:
+            segment, fraction = np.zeros(len(t), dtype=int), np.zeros(len(t))
+            p_samples, r_samples, times = np.repeat(p_samples, 2, 0), np.repeat(r_samples, 2, 0), np.array([0.0, 1.0])
+        else:
+            segment = np.clip(np.searchsorted(times, tau, side="right") - 1, 0, len(times) - 2)
+            fraction = (tau - times[segment]) / (times[segment + 1] - times[segment])
+        dt = (times[1:] - times[:-1])[segment][:, None]
+        p0, p1 = p_samples[segment], p_samples[segment + 1]
+        p_W = p0 + fraction[:, None] * (p1 - p0)
+        r0, r1 = r_samples[segment], r_samples[segment + 1]
+        r1 = np.where(np.sum(r0 * r1, axis=1, keepdims=True) < 0.0, -r1, r1)  # the shorter way round
+        relative = rotation_vector_from_quaternion(quaternion_multiply(r1, quaternion_conjugate(r0)))
+        r_W = quaternion_multiply(quaternion_from_rotation_vector(fraction[:, None] * relative), r0)
+        R_W = rotation_matrices(r_W)
+        V_W = np.concatenate([relative / dt, (p1 - p0) / dt], axis=1)
+        V_W[t >= plan.duration] = 0.0
+        R_BW = self._R_BW
+        R_B = (R_BW @ R_W).tolist()
+        p_B = ((p_W - self._p_WB) @ R_BW.T).tolist()
+        V_B = np.concatenate([V_W[:, :3] @ R_BW.T, V_W[:, 3:] @ R_BW.T], axis=1).tolist()
+        return R_B, p_B, V_B, R_W, p_W, V_W
+
+    def _law_step(self, q: list, desired: tuple, i: int) -> tuple[list, list]:
+        """The law's joint velocity at ``q`` toward sample ``i`` of ``desired`` and the
+        pose error (rotation, translation; its norms are the frame's own): the UR5e's
+        DH kinematics in B in plain floats (:class:`~drake_lfd.robot.dh_kinematics.DHArm`,
+        equal to the plant's to 1e-15) and the law's closed form; Drake's kinematics
+        and QP where the closed form does not apply (the law's own
+        :meth:`~drake_lfd.robot.differential_ik_law.DifferentialIKLaw.joint_velocity`)."""
+        R_d, p_d, V_d = desired[0][i], desired[1][i], desired[2][i]
+        R, p, J = self._arm.pose_and_jacobian(q)
+        rotation = rotation_error(R_d, R)
+        if rotation is not None:
+            error = rotation + [p_d[0] - p[0], p_d[1] - p[1], p_d[2] - p[2]]
+            gain = self.law.position_gain
+            v = self.law.closed_form_step(q, J, [a + gain * b for a, b in zip(V_d, error)])
+            if v is not None:
+                return v, error
+        R_W, p_W, V_W = desired[3][i], desired[4][i], desired[5][i]
+        q = np.array(q)
+        v = self.law.joint_velocity(q, q, RigidTransform(RotationMatrix(R_W), p_W), V_W)
+        return v.tolist(), self.law.last_pose_error.tolist()
 
     def _reusable(self, q_start, critical_indices, times, poses):
         """The remembered follow from ``q_start`` sharing the longest prefix with the
