@@ -89,7 +89,7 @@ def finished_rows(path):
 
 @pytest.mark.slow
 def test_an_interrupted_sweep_resumes_to_the_table_of_an_uninterrupted_one(tmp_path):
-    options = ["--trials", 4, "--workers", 2]
+    options = ["--trials", 8, "--workers", 2]
     interrupted = tmp_path / "interrupted"
     process = subprocess.Popen(cli_command(*sweep_args(interrupted, *options)), stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True, env=cli_env())
@@ -102,14 +102,14 @@ def test_an_interrupted_sweep_resumes_to_the_table_of_an_uninterrupted_one(tmp_p
     assert process.returncode == 1
     assert "Traceback" not in stderr and stderr_lines(stderr) == ["drake-lfd sweep: interrupted"]
     kept = read_json_lines(interrupted / "sweep.jsonl")
-    assert 1 <= len(kept) < 4
-    assert f"{len(kept)} of 4 trials are in" in stdout and "--resume" in stdout
+    assert 1 <= len(kept) < 8
+    assert f"{len(kept)} of 8 trials are in" in stdout and "--resume" in stdout
     assert not (interrupted / "summary.json").exists()
     assert cli.main(sweep_args(interrupted, *options, "--resume")) == 0
     resumed = read_json_lines(interrupted / "sweep.jsonl")
-    assert resumed[:len(kept)] == kept and len(resumed) == 4  # kept rows untouched, only the rest ran
+    assert resumed[:len(kept)] == kept and len(resumed) == 8  # kept rows untouched, only the rest ran
     uninterrupted = tmp_path / "uninterrupted"
-    assert cli.main(sweep_args(uninterrupted, "--trials", 4, "--workers", 1)) == 0
+    assert cli.main(sweep_args(uninterrupted, "--trials", 8, "--workers", 1)) == 0
     assert table(interrupted) == table(uninterrupted)
     first = json.loads((interrupted / "summary.json").read_text())
     second = json.loads((uninterrupted / "summary.json").read_text())
