@@ -221,16 +221,18 @@ def _critical_pose_errors(result, composed):
 
 def test_an_iterate_at_the_iteration_limit_refines_when_it_passes_the_checks(transferring, refined):
     """Measured on this plan: SNOPT converges within the default 100 major iterations
-    (39 evaluations, both solves); stopped at 3 (SNOPT info 32) the tube program's last
-    iterate is feasible and the project's checks accept it; stopped at 100 iterations in
-    all (SNOPT info 31) the iterates from both starts are refused."""
+    (36 evaluations in 2 solves: the plain program, the tube program from its motion);
+    stopped at 3 (SNOPT info 32) each solve does less (43 evaluations in 5 solves: the
+    first round's iterates are refused, the second round's tube iterate is feasible and
+    the project's checks accept it); stopped at 100 iterations in all (SNOPT info 31)
+    the iterates from both starts are refused."""
     composed, checker, scene = transferring
     assert refined.refinement.refined and not refined.refinement.budget_spent
     stopped = refine_plan(composed, checker, scene=scene,
                           options=RefinementOptions(budget=SolverBudget(major_iterations=3)))
     report = stopped.refinement
     assert report.budget_spent and report.status == "refined", report.reason
-    assert report.evaluations < refined.refinement.evaluations
+    assert report.evaluations / report.attempts < refined.refinement.evaluations / refined.refinement.attempts
     assert stopped.joint_path.executable and stopped.timed.duration <= 1.02 * refined.timed.duration
     for position, rotation in _critical_pose_errors(stopped, composed):
         assert position <= 0.0018 and rotation <= math.radians(0.45)
