@@ -31,6 +31,18 @@ def test_pose_and_jacobian_equal_the_plants():
         np.testing.assert_allclose(J, J_plant, atol=1e-14)
 
 
+def test_the_batched_table_equals_the_plants_forward_kinematics():
+    X_WB = RigidTransform(RollPitchYaw(0.1, -0.05, 0.7), [0.3, -0.2, 0.8])
+    kinematics = UR5eKinematics(X_WB=X_WB, X_tool0_E=X_TOOL0_E)
+    q = np.random.default_rng(1).uniform(-6.0, 6.0, (200, 6))
+    np.testing.assert_allclose(kinematics.X_WE_table_batch(q), kinematics.X_WE_batch(q), atol=1e-14)
+    np.testing.assert_allclose(kinematics.X_WE_table_batch(q[0]), kinematics.X_WE_batch(q[:1]), atol=1e-14)
+    arm = DHArm(X_TOOL0_E)
+    R, p, _ = arm.pose_and_jacobian(q[5].tolist())
+    np.testing.assert_allclose(arm.poses_batch(q[5:6])[0, :3, :3], R, atol=1e-15)
+    np.testing.assert_allclose(arm.poses_batch(q[5:6])[0, :3, 3], p, atol=1e-15)
+
+
 @pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-4, 0.3, 1.5])
 def test_rotation_error_is_drakes_angle_axis(angle):
     R = RollPitchYaw(0.2, -0.4, 1.0).ToRotationMatrix()

@@ -47,6 +47,7 @@ class DHArm:
         X_tool0_E = RigidTransform() if X_tool0_E is None else X_tool0_E
         self._R_tool0_E = X_tool0_E.rotation().matrix().tolist()
         self._p_tool0_E = X_tool0_E.translation().tolist()
+        self._X_tool0_E = X_tool0_E.GetAsMatrix4()
 
     def pose_and_jacobian(self, q: Sequence[float]):
         """``(R_BE, p_BE, J)`` at ``q`` (six floats): R_BE as three rows of three floats,
@@ -85,6 +86,24 @@ class DHArm:
             J[4].append(wz * lx - wx * lz)
             J[5].append(wx * ly - wy * lx)
         return R, p, J
+
+    def poses_batch(self, q: np.ndarray) -> np.ndarray:
+        """Homogeneous matrices of X_BE, shape (m, 4, 4), for joint angles ``q`` (m, 6):
+        the same table as :meth:`pose_and_jacobian`, one numpy product per joint for all
+        samples (a timed path's several hundred samples in a fraction of a millisecond)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        X = np.broadcast_to(np.eye(4), (len(q), 4, 4)).copy()
+        for j, (a, d, sin_alpha) in enumerate(zip(UR5E_DH_A, UR5E_DH_D, _SIN_ALPHA)):
+            # The link's transform: Rot_z(q_j) Trans_z(d) Trans_x(a) Rot_x(alpha).
+            c, s = np.cos(q[:, j]), np.sin(q[:, j])
+            cos_alpha = 1.0 if sin_alpha == 0.0 else 0.0
+            link = np.zeros((len(q), 4, 4))
+            link[:, 0, 0], link[:, 0, 1], link[:, 0, 2], link[:, 0, 3] = c, -s * cos_alpha, s * sin_alpha, a * c
+            link[:, 1, 0], link[:, 1, 1], link[:, 1, 2], link[:, 1, 3] = s, c * cos_alpha, -c * sin_alpha, a * s
+            link[:, 2, 1], link[:, 2, 2], link[:, 2, 3] = sin_alpha, cos_alpha, d
+            link[:, 3, 3] = 1.0
+            X = X @ link
+        return X @ self._X_tool0_E
 
 
 def rotation_error(R_desired: Sequence[Sequence[float]], R: Sequence[Sequence[float]]) -> list[float] | None:

