@@ -26,7 +26,7 @@ def test_pose_and_jacobian_equal_the_plants():
         J_plant = kinematics.plant.CalcJacobianSpatialVelocity(
             kinematics.context, JacobianWrtVariable.kV, kinematics.end_effector_frame, np.zeros(3),
             kinematics.world_frame, kinematics.world_frame)
-        np.testing.assert_allclose(R, X.rotation().matrix(), atol=1e-14)
+        np.testing.assert_allclose(np.reshape(R, (3, 3)), X.rotation().matrix(), atol=1e-14)
         np.testing.assert_allclose(p, X.translation(), atol=1e-14)
         np.testing.assert_allclose(J, J_plant, atol=1e-14)
 
@@ -39,7 +39,7 @@ def test_the_batched_table_equals_the_plants_forward_kinematics():
     np.testing.assert_allclose(kinematics.X_WE_table_batch(q[0]), kinematics.X_WE_batch(q[:1]), atol=1e-14)
     arm = DHArm(X_TOOL0_E)
     R, p, _ = arm.pose_and_jacobian(q[5].tolist())
-    np.testing.assert_allclose(arm.poses_batch(q[5:6])[0, :3, :3], R, atol=1e-15)
+    np.testing.assert_allclose(arm.poses_batch(q[5:6])[0, :3, :3], np.reshape(R, (3, 3)), atol=1e-15)
     np.testing.assert_allclose(arm.poses_batch(q[5:6])[0, :3, 3], p, atol=1e-15)
 
 
@@ -50,14 +50,14 @@ def test_rotation_error_is_drakes_angle_axis(angle):
     turn = RotationMatrix(AngleAxis(angle, axis))
     R_desired = turn.multiply(R)
     expected = pose_error(RigidTransform(R_desired, [0, 0, 0]), RigidTransform(R, [0, 0, 0]))[:3]
-    got = rotation_error(R_desired.matrix().tolist(), R.matrix().tolist())
+    got = rotation_error(R_desired.matrix().ravel().tolist(), R.matrix().ravel().tolist())
     np.testing.assert_allclose(got, expected, atol=1e-15)
     np.testing.assert_allclose(np.linalg.norm(got), angle, atol=1e-15)
 
 
 def test_beyond_a_quarter_turn_the_caller_is_told_to_use_drakes():
-    R = RollPitchYaw(0.0, 0.0, 2.0).ToRotationMatrix().matrix().tolist()
-    assert rotation_error(R, np.eye(3).tolist()) is None
+    R = RollPitchYaw(0.0, 0.0, 2.0).ToRotationMatrix().matrix().ravel().tolist()
+    assert rotation_error(R, np.eye(3).ravel().tolist()) is None
 
 
 def test_the_checkers_plan_samples_equal_drakes_piecewise_pose():
@@ -68,7 +68,9 @@ def test_the_checkers_plan_samples_equal_drakes_piecewise_pose():
     X_WB = RigidTransform(RollPitchYaw(0.0, 0.0, 0.7), [0.2, -0.1, 0.8])
     checker = JointPathChecker(KinematicScene(X_WB=X_WB), X_WB=X_WB)
     t = np.arange(0, int(plan.duration / 0.01) + 5) * 0.01
-    R_B, p_B, V_B, R_W, p_W, V_W = checker._desired_in_base(plan, t)
+    in_base, R_W, p_W, V_W = checker._desired_in_base(plan, t)
+    in_base = np.array(in_base)
+    R_B, p_B, V_B = in_base[:, :9].reshape(-1, 3, 3), in_base[:, 9:12], in_base[:, 12:]
     trajectory = plan.to_piecewise_pose()
     velocity = trajectory.MakeDerivative().vector_values(np.minimum(t, plan.duration))
     velocity[:, t >= plan.duration] = 0.0
@@ -80,6 +82,8 @@ def test_the_checkers_plan_samples_equal_drakes_piecewise_pose():
         np.testing.assert_allclose(R_B[i], X_B.rotation().matrix(), atol=1e-14)
         np.testing.assert_allclose(p_B[i], X_B.translation(), atol=1e-14)
     np.testing.assert_allclose(V_W, velocity.T, atol=1e-12)
+    R_WB = X_WB.rotation().matrix()
+    np.testing.assert_allclose(V_B, np.hstack([V_W[:, :3] @ R_WB, V_W[:, 3:] @ R_WB]), atol=1e-15)
 
 
 def test_rotation_matrices_of_quaternions():

@@ -50,7 +50,7 @@ class DHArm:
         self._X_tool0_E = X_tool0_E.GetAsMatrix4()
 
     def pose_and_jacobian(self, q: Sequence[float]):
-        """``(R_BE, p_BE, J)`` at ``q`` (six floats): R_BE as three rows of three floats,
+        """``(R_BE, p_BE, J)`` at ``q`` (six floats): R_BE as nine floats, row by row,
         p_BE three floats, J (6, 6) rows ``[omega; v]`` of E's origin in B, as lists."""
         xx, xy, xz, yx, yy, yz, zx, zy, zz = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
         px = py = pz = 0.0
@@ -72,20 +72,20 @@ class DHArm:
         (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = self._R_tool0_E
         ex, ey, ez = self._p_tool0_E
         # R_BE = [x y z] R_tool0_E (rows), p_BE = p + [x y z] p_tool0_E.
-        R = [[xx * r00 + yx * r10 + zx * r20, xx * r01 + yx * r11 + zx * r21, xx * r02 + yx * r12 + zx * r22],
-             [xy * r00 + yy * r10 + zy * r20, xy * r01 + yy * r11 + zy * r21, xy * r02 + yy * r12 + zy * r22],
-             [xz * r00 + yz * r10 + zz * r20, xz * r01 + yz * r11 + zz * r21, xz * r02 + yz * r12 + zz * r22]]
-        p = [px + xx * ex + yx * ey + zx * ez, py + xy * ex + yy * ey + zy * ez, pz + xz * ex + yz * ey + zz * ez]
+        R = [xx * r00 + yx * r10 + zx * r20, xx * r01 + yx * r11 + zx * r21, xx * r02 + yx * r12 + zx * r22,
+             xy * r00 + yy * r10 + zy * r20, xy * r01 + yy * r11 + zy * r21, xy * r02 + yy * r12 + zy * r22,
+             xz * r00 + yz * r10 + zz * r20, xz * r01 + yz * r11 + zz * r21, xz * r02 + yz * r12 + zz * r22]
+        p0, p1, p2 = px + xx * ex + yx * ey + zx * ez, py + xy * ex + yy * ey + zy * ez, pz + xz * ex + yz * ey + zz * ez
         J = [[], [], [], [], [], []]
         for (wx, wy, wz), (ox, oy, oz) in zip(axes, origins):
-            lx, ly, lz = p[0] - ox, p[1] - oy, p[2] - oz
+            lx, ly, lz = p0 - ox, p1 - oy, p2 - oz
             J[0].append(wx)
             J[1].append(wy)
             J[2].append(wz)
             J[3].append(wy * lz - wz * ly)
             J[4].append(wz * lx - wx * lz)
             J[5].append(wx * ly - wy * lx)
-        return R, p, J
+        return R, [p0, p1, p2], J
 
     def poses_batch(self, q: np.ndarray) -> np.ndarray:
         """Homogeneous matrices of X_BE, shape (m, 4, 4), for joint angles ``q`` (m, 6):
@@ -106,11 +106,15 @@ class DHArm:
         return X @ self._X_tool0_E
 
 
-def rotation_error(R_desired: Sequence[Sequence[float]], R: Sequence[Sequence[float]]) -> list[float] | None:
-    """The rotation vector of ``R_desired R^T`` (rows of floats), as three floats; None
-    beyond 90 degrees (where the caller uses Drake's angle-axis instead)."""
-    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = R_desired
-    (b00, b01, b02), (b10, b11, b12), (b20, b21, b22) = R
+def rotation_error(R_desired: Sequence[float], R: Sequence[float]) -> list[float] | None:
+    """The rotation vector of ``R_desired R^T``, as three floats; each matrix nine floats,
+    row by row (of ``R_desired``, the first nine are read: the checker keeps a sample's
+    whole desired motion in one list). None beyond 90 degrees (where the caller uses
+    Drake's angle-axis instead)."""
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = (R_desired[0], R_desired[1], R_desired[2], R_desired[3],
+                                                   R_desired[4], R_desired[5], R_desired[6], R_desired[7],
+                                                   R_desired[8])
+    b00, b01, b02, b10, b11, b12, b20, b21, b22 = R
     # M = R_desired R^T: M_ij = row i of R_desired . row j of R.
     m01, m10 = a00 * b10 + a01 * b11 + a02 * b12, a10 * b00 + a11 * b01 + a12 * b02
     m02, m20 = a00 * b20 + a01 * b21 + a02 * b22, a20 * b00 + a21 * b01 + a22 * b02

@@ -490,10 +490,10 @@ class JointPathChecker:
         return result
 
     def _desired_in_base(self, plan: TimedPlan, t: np.ndarray) -> tuple:
-        """The plan at times ``t``, in the base frame B, as lists per sample: E's
-        rotation (rows), position and spatial velocity (zero from the plan's end on);
-        and the same in W as arrays ``(R (m, 3, 3), p (m, 3), V (m, 6))`` for the law's
-        fallback. The plan is linear in position and slerped in rotation between its
+        """The plan at times ``t``, in the base frame B, one list of 18 floats per sample:
+        E's rotation (nine, row by row), position (three) and spatial velocity (six, zero
+        from the plan's end on); and the same in W as arrays ``(R (m, 3, 3), p (m, 3),
+        V (m, 6))`` for the law's fallback. The plan is linear in position and slerped in rotation between its
         samples (:meth:`~drake_lfd.core.timing.TimedPlan.to_piecewise_pose`, evaluated
         here in numpy: equal to Drake's to 1e-15)."""
         times = np.asarray(plan.times, dtype=float)
@@ -517,10 +517,9 @@ class JointPathChecker:
         V_W = np.concatenate([relative / dt, (p1 - p0) / dt], axis=1)
         V_W[t >= plan.duration] = 0.0
         R_BW = self._R_BW
-        R_B = (R_BW @ R_W).tolist()
-        p_B = ((p_W - self._p_WB) @ R_BW.T).tolist()
-        V_B = np.concatenate([V_W[:, :3] @ R_BW.T, V_W[:, 3:] @ R_BW.T], axis=1).tolist()
-        return R_B, p_B, V_B, R_W, p_W, V_W
+        in_base = np.concatenate([(R_BW @ R_W).reshape(len(t), 9), (p_W - self._p_WB) @ R_BW.T,
+                                  V_W[:, :3] @ R_BW.T, V_W[:, 3:] @ R_BW.T], axis=1)
+        return in_base.tolist(), R_W, p_W, V_W
 
     def _law_step(self, q: list, desired: tuple, i: int) -> tuple[list, list]:
         """The law's joint velocity at ``q`` toward sample ``i`` of ``desired`` and the
@@ -529,16 +528,16 @@ class JointPathChecker:
         equal to the plant's to 1e-15) and the law's closed form; Drake's kinematics
         and QP where the closed form does not apply (the law's own
         :meth:`~drake_lfd.robot.differential_ik_law.DifferentialIKLaw.joint_velocity`)."""
-        R_d, p_d, V_d = desired[0][i], desired[1][i], desired[2][i]
+        d = desired[0][i]  # R_d (9), p_d (3), V_d (6)
         R, p, J = self._arm.pose_and_jacobian(q)
-        rotation = rotation_error(R_d, R)
+        rotation = rotation_error(d, R)
         if rotation is not None:
-            error = rotation + [p_d[0] - p[0], p_d[1] - p[1], p_d[2] - p[2]]
+            error = rotation + [d[9] - p[0], d[10] - p[1], d[11] - p[2]]
             gain = self.law.position_gain
-            v = self.law.closed_form_step(q, J, [a + gain * b for a, b in zip(V_d, error)])
+            v = self.law.closed_form_step(q, J, [a + gain * b for a, b in zip(d[12:], error)])
             if v is not None:
                 return v, error
-        R_W, p_W, V_W = desired[3][i], desired[4][i], desired[5][i]
+        R_W, p_W, V_W = desired[1][i], desired[2][i], desired[3][i]
         q = np.array(q)
         v = self.law.joint_velocity(q, q, RigidTransform(RotationMatrix(R_W), p_W), V_W)
         return v.tolist(), self.law.last_pose_error.tolist()
