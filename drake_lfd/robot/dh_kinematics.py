@@ -90,7 +90,7 @@ class DHArm:
     def poses_batch(self, q: np.ndarray) -> np.ndarray:
         """Homogeneous matrices of X_BE, shape (m, 4, 4), for joint angles ``q`` (m, 6):
         the same table as :meth:`pose_and_jacobian`, one numpy product per joint for all
-        samples (a timed path's several hundred samples in a fraction of a millisecond)."""
+        samples (several hundred samples in a fraction of a millisecond)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         X = np.broadcast_to(np.eye(4), (len(q), 4, 4)).copy()
         for j, (a, d, sin_alpha) in enumerate(zip(UR5E_DH_A, UR5E_DH_D, _SIN_ALPHA)):

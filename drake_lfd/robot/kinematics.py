@@ -188,9 +188,10 @@ class UR5eKinematics:
 
     def X_WE_table_batch(self, q_samples: np.ndarray) -> np.ndarray:
         """:meth:`X_WE_batch` from the UR5e's DH table in numpy (equal to the plant's to
-        5e-16; :class:`~drake_lfd.robot.dh_kinematics.DHArm`): for the several hundred
-        samples of each timed path, four times faster. Demonstration features keep the
-        plant's (:meth:`X_WE_batch`)."""
+        5e-16; :class:`~drake_lfd.robot.dh_kinematics.DHArm`), four times faster: for
+        figures compared against a threshold (the timing's tool deviation). Poses a plan
+        or a feature is made of keep the plant's (:meth:`X_WE_batch`): SNOPT's
+        refinement from a plan moves with their last bit."""
         if self._table_arm is None:
             self._table_arm = DHArm(self.X_tool0_E)
         return self.X_WB.GetAsMatrix4() @ self._table_arm.poses_batch(q_samples)

@@ -406,7 +406,7 @@ def retime_plan(plan: TimedPlan, joint_path: JointPath, stops: Sequence[bool], k
     samples = np.minimum(np.round(due / step).astype(int), len(joint_path.q) - 1)
     q_recorded = joint_path.q[:samples[-1] + 1]
     timed_path = time_joint_path(q_recorded, samples, stops, kinematics, limits, options)
-    poses = dual_quaternion_from_matrices(kinematics.X_WE_table_batch(timed_path.q))
+    poses = dual_quaternion_from_matrices(kinematics.X_WE_batch(timed_path.q))
     timed = TimedPlan(timed_path.t.copy(), poses, timed_path.critical_indices)
     on_grid = timed_path.on_grid(period)
     t_uniform, q_uniform = timed_path.t[on_grid], timed_path.q[on_grid]
