@@ -331,7 +331,7 @@ class JointPathChecker:
         self._any_unbounded = bool(self._pair_unbounded.any())
         self._table_ids = set(table_ids)
         self._scene_graph_context = scene.scene_graph.GetMyContextFromRoot(scene.context)
-        self._lower = self.law.position_lower
+        self._lower, self._upper = self.law.position_lower, self.law.position_upper
         # The arm's DH kinematics in its base frame B (the plant's own base and E frames).
         context = plant.CreateDefaultContext()
         X_WB_plant = plant.CalcRelativeTransform(context, plant.world_frame(),
@@ -341,7 +341,6 @@ class JointPathChecker:
         self._arm = DHArm(X_tool0_E)
         self._R_BW = X_WB_plant.rotation().matrix().T
         self._p_WB = X_WB_plant.translation()
-        self._upper = self.law.position_upper
 
     @functools.cached_property
     def kinematics(self) -> UR5eKinematics:
