@@ -414,7 +414,7 @@ class JointPathChecker:
                                              tuple(critical_errors))
             t = k * dt
             times.append(t)
-            path.append(q)
+            path.append(tuple(q))  # (a tuple: see _desired_in_base)
             while span < len(due) - 2 and due[span + 1] <= t:
                 span += 1
             # Singularities.
@@ -518,7 +518,8 @@ class JointPathChecker:
         R_BW = self._R_BW
         in_base = np.concatenate([(R_BW @ R_W).reshape(len(t), 9), (p_W - self._p_WB) @ R_BW.T,
                                   V_W[:, :3] @ R_BW.T, V_W[:, 3:] @ R_BW.T], axis=1)
-        return in_base.tolist(), R_W, p_W, V_W
+        # Tuples of floats leave the garbage collector's scans; the follow keeps them all.
+        return list(map(tuple, in_base.tolist())), R_W, p_W, V_W
 
     def _law_step(self, q: list, desired: tuple, i: int) -> tuple[list, list]:
         """The law's joint velocity at ``q`` toward sample ``i`` of ``desired`` and the
