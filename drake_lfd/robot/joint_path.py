@@ -489,12 +489,13 @@ class JointPathChecker:
         return result
 
     def _desired_in_base(self, plan: TimedPlan, t: np.ndarray) -> tuple:
-        """The plan at times ``t``, in the base frame B, one list of 18 floats per sample:
+        """The plan at times ``t``, in the base frame B, a tuple of 18 floats per sample:
         E's rotation (nine, row by row), position (three) and spatial velocity (six, zero
         from the plan's end on); and the same in W as arrays ``(R (m, 3, 3), p (m, 3),
-        V (m, 6))`` for the law's fallback. The plan is linear in position and slerped in rotation between its
-        samples (:meth:`~drake_lfd.core.timing.TimedPlan.to_piecewise_pose`, evaluated
-        here in numpy: equal to Drake's to 1e-15)."""
+        V (m, 6))`` for the law's fallback. The plan is linear in position and slerped
+        in rotation between its samples
+        (:meth:`~drake_lfd.core.timing.TimedPlan.to_piecewise_pose`, evaluated here in
+        numpy: equal to Drake's to 1e-15)."""
         times = np.asarray(plan.times, dtype=float)
         p_samples = translation_from_dual_quaternion(plan.poses)
         r_samples = rotation_from_dual_quaternion(plan.poses)
