@@ -4,8 +4,9 @@ The simulator's own judge (``closed_loop.judge_run``) uses the plant and the mon
 This module recomputes the success criteria (docs/method.rst, Closed loop and success) from what ``simulate --json`` logs (``t``,
 ``q``, the critical configurations and when each was due) with independent means:
 
-* forward kinematics from Universal Robots' DH table, written here in numpy (not the
-  URDF, not Drake): ``X_WE = X_WB * DH(q) * X_tool0_E``;
+* forward kinematics from Universal Robots' DH table in numpy (not the URDF, not
+  Drake; the batch kernel of :mod:`drake_lfd.robot.dh_kinematics`):
+  ``X_WE = X_WB * DH(q) * X_tool0_E``;
 * joint speeds by finite differences of the logged positions;
 * clearances to obstacles and shells re-queried on a separate kinematics-only scene
   (``scene.KinematicScene``) at the logged configurations.
@@ -20,6 +21,9 @@ import dataclasses
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 
+from drake_lfd.robot.analytic_ik import UR5E_DH_A, UR5E_DH_D
+from drake_lfd.robot.dh_kinematics import DHArm
+
 __all__ = [
     'DH_D',
     'DH_A',
@@ -32,27 +36,17 @@ __all__ = [
 ]
 
 # Universal Robots' UR5e DH parameters and joint limits (data sheet).
-DH_D = np.array([0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996])
-DH_A = np.array([0.0, -0.425, -0.3922, 0.0, 0.0, 0.0])
+DH_D = np.array(UR5E_DH_D)
+DH_A = np.array(UR5E_DH_A)
 DH_ALPHA = np.array([np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0])
 POSITION_LIMITS = np.array([2 * np.pi, 2 * np.pi, np.pi, 2 * np.pi, 2 * np.pi, 2 * np.pi])
 SPEED_LIMIT = np.pi  # 180 deg/s, every joint
+_TOOL0 = DHArm()  # the chain to tool0 (E = tool0)
 
 
 def dh_forward_kinematics(q: np.ndarray) -> np.ndarray:
     """tool0 in the base frame from the DH table, q (m, 6) -> (m, 4, 4)."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    T = np.broadcast_to(np.eye(4), (len(q), 4, 4)).copy()
-    for i in range(6):
-        ct, st = np.cos(q[:, i]), np.sin(q[:, i])
-        ca, sa = np.cos(DH_ALPHA[i]), np.sin(DH_ALPHA[i])
-        A = np.zeros((len(q), 4, 4))
-        A[:, 0] = np.stack([ct, -st * ca, st * sa, DH_A[i] * ct], axis=1)
-        A[:, 1] = np.stack([st, ct * ca, -ct * sa, DH_A[i] * st], axis=1)
-        A[:, 2, 1:] = [sa, ca, DH_D[i]]
-        A[:, 3, 3] = 1.0
-        T = T @ A
-    return T
+    return _TOOL0.poses_batch(q)
 
 
 def _rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:

@@ -14,6 +14,10 @@ Working in B instead of W changes nothing the law computes but the frame its vec
 are written in: the pose error and the desired velocity are rotated into B with the
 Jacobian, so ``J^-1 V`` and its scale under the joint limits are the same.
 
+:meth:`DHArm.poses_batch` is the same table for many configurations at once in numpy:
+the timing's tool-deviation figure and the re-derivation of logged runs
+(``experiments/rederive.py``) use it.
+
 Not for: inverse kinematics (``analytic_ik.py``), collision geometry (``scene.py``).
 """
 
@@ -109,11 +113,9 @@ class DHArm:
 def rotation_error(R_desired: Sequence[float], R: Sequence[float]) -> list[float] | None:
     """The rotation vector of ``R_desired R^T``, as three floats; each matrix nine floats,
     row by row (of ``R_desired``, the first nine are read: the checker keeps a sample's
-    whole desired motion in one list). None beyond 90 degrees (where the caller uses
+    whole desired motion in one tuple). None beyond 90 degrees (where the caller uses
     Drake's angle-axis instead)."""
-    a00, a01, a02, a10, a11, a12, a20, a21, a22 = (R_desired[0], R_desired[1], R_desired[2], R_desired[3],
-                                                   R_desired[4], R_desired[5], R_desired[6], R_desired[7],
-                                                   R_desired[8])
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = R_desired[:9]
     b00, b01, b02, b10, b11, b12, b20, b21, b22 = R
     # M = R_desired R^T: M_ij = row i of R_desired . row j of R.
     m01, m10 = a00 * b10 + a01 * b11 + a02 * b12, a10 * b00 + a11 * b01 + a12 * b02

@@ -145,7 +145,7 @@ class UR5eKinematics:
         self.tool0_frame = self.plant.GetFrameByName(TOOL0_FRAME_NAME, self.model)
         self.end_effector_frame = self.plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)
         self.joints = [self.plant.GetJointByName(name, self.model) for name in UR5E_JOINT_NAMES]
-        self._table_arm = None  # X_WE_table_batch's DHArm, made on first use
+        self._table_arm = DHArm(self.X_tool0_E)  # X_WE_table_batch's
 
     # -- limits -------------------------------------------------------------------------
     def position_limits(self) -> tuple[np.ndarray, np.ndarray]:
@@ -192,8 +192,6 @@ class UR5eKinematics:
         figures compared against a threshold (the timing's tool deviation). Poses a plan
         or a feature is made of keep the plant's (:meth:`X_WE_batch`): SNOPT's
         refinement from a plan moves with their last bit."""
-        if self._table_arm is None:
-            self._table_arm = DHArm(self.X_tool0_E)
         return self.X_WB.GetAsMatrix4() @ self._table_arm.poses_batch(q_samples)
 
     def X_Wtool0_batch(self, q_samples: np.ndarray) -> np.ndarray:
