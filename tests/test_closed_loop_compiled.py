@@ -31,7 +31,7 @@ def test_the_default_controller_is_the_compiled_one_without_python_systems():
     assert isinstance(pipeline.controller, JointTrajectoryController)
     # Every system of the controller is one of Drake's C++ primitives.
     names = {type(system).__name__ for system in pipeline.controller.GetSystems()}
-    assert names == {"TrajectorySource", "Multiplexer", "MatrixGain", "Saturation", "LinearSystem"}
+    assert names == {"AffineSystem", "MultilayerPerceptron", "Multiplexer", "MatrixGain", "Saturation", "LinearSystem"}
     # The monitor has no event of its own: it measures the joint log.
     assert pipeline.monitor.measures_log
 
@@ -136,8 +136,8 @@ def test_the_compiled_command_is_held_between_updates_without_feed_through():
 
 def test_open_loop_the_compiled_command_is_the_path_one_period_ahead_sample_for_sample():
     controller, t, q, _ = _controller_and_path()
-    controller.set_path(t, q)
     context = controller.CreateDefaultContext()
+    controller.set_path(context, t, q)
     controller.set_initial_command(context, q[0])
     dt = controller.time_step
     desired = lambda time: np.array([np.interp(time, t, q[:, j]) for j in range(6)])
@@ -147,25 +147,45 @@ def test_open_loop_the_compiled_command_is_the_path_one_period_ahead_sample_for_
         controller.q_measured_input_port.FixValue(context, desired(k * dt))
         np.testing.assert_allclose(controller.q_command_output_port.Eval(context), desired((k + 1) * dt),
                                    atol=1e-12)
-        update = controller.EvalUniquePeriodicDiscreteUpdate(context)
-        context.SetDiscreteState(update.value())
-    np.testing.assert_allclose(controller.desired_positions(context), q[-1])  # held after the end
+        context.get_mutable_discrete_state().SetFrom(controller.EvalUniquePeriodicDiscreteUpdate(context))
+    # Held after the end: the command stays at the path's last sample.
+    np.testing.assert_allclose(controller.q_command_output_port.Eval(context), q[-1], atol=1e-12)
+
+
+def test_two_contexts_of_one_controller_hold_two_paths():
+    controller, t, q, _ = _controller_and_path()
+    first, second = controller.CreateDefaultContext(), controller.CreateDefaultContext()
+    controller.set_path(first, t, q)
+    controller.set_path(second, t, q[::-1])
+    for context in (first, second):
+        controller.set_initial_command(context, q[0])
+        context.SetTime(0.0)
+    dt, K = controller.time_step, controller.position_gain
+    # w_0 (the path held before its start) differs: each Context has its own table.
+    np.testing.assert_allclose(controller.feed_forward(first), dt * K * q[0], atol=1e-12)
+    np.testing.assert_allclose(controller.feed_forward(second), dt * K * q[-1], atol=1e-12)
+
+
+def test_a_path_longer_than_the_table_is_refused():
+    controller, t, q, _ = _controller_and_path()
+    with pytest.raises(ValueError, match="later than"):
+        controller.set_path(controller.CreateDefaultContext(), t + controller.max_duration_s, q)
 
 
 def test_the_compiled_feedback_pulls_the_command_towards_the_path_at_the_clipped_speed():
     controller, t, q, law = _controller_and_path()
-    controller.set_path(t, q)
     context = controller.CreateDefaultContext()
+    controller.set_path(context, t, q)
     controller.set_initial_command(context, q[0])
     dt, K = controller.time_step, controller.position_gain
     # 1 mrad behind on every joint, before the path starts: dt K of it corrected per period.
     controller.q_measured_input_port.FixValue(context, q[0] - 1e-3)
-    context.SetDiscreteState(controller.EvalUniquePeriodicDiscreteUpdate(context).value())
+    context.get_mutable_discrete_state().SetFrom(controller.EvalUniquePeriodicDiscreteUpdate(context))
     np.testing.assert_allclose(controller.q_command_output_port.Eval(context), q[0] + dt * K * 1e-3, atol=1e-12)
     # Far behind: each joint's step is clipped at its speed limit.
     controller.q_measured_input_port.FixValue(context, q[0] - 1.0)
     before = controller.q_command_output_port.Eval(context).copy()
-    context.SetDiscreteState(controller.EvalUniquePeriodicDiscreteUpdate(context).value())
+    context.get_mutable_discrete_state().SetFrom(controller.EvalUniquePeriodicDiscreteUpdate(context))
     step = controller.q_command_output_port.Eval(context) - before
     np.testing.assert_allclose(step, dt * law.velocity_limits, rtol=1e-12)
 

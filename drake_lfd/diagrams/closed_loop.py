@@ -349,7 +349,7 @@ class ClosedLoopRunner:
         q_initial = np.asarray(q_initial, dtype=float)
         station.set_initial_positions(context, q_initial)
         if pipeline.compiled:
-            pipeline.controller.set_path(*joint_path_of_plan(scheduled, q_initial, pipeline.law))
+            pipeline.controller.set_path(context, *joint_path_of_plan(scheduled, q_initial, pipeline.law))
             pipeline.controller.set_initial_command(context, q_initial)
         pipeline.logger.FindMutableLog(context).Clear()
         visualizer = station.visualizer

@@ -5,7 +5,7 @@ one the differential-IK law commands, sampled every controller period), and its 
 path is that path's forward kinematics. :class:`JointTrajectoryController` tracks it
 with no Python in the 100 Hz loop: a subsystem Diagram of pydrake primitives::
 
-    TrajectorySource(w_k: the path's feed-forward step and dt K q_d, per period) --\
+    clock -> table(w_k: the path's feed-forward step and dt K q_d, per period) --\
                                                       Multiplexer -> MatrixGain (dt v) -> Saturation
     q_measured --------------------------------------/                     (joint speed limits)
         -> LinearSystem (discrete, period dt, no feed-through: the command integrator)
@@ -22,8 +22,12 @@ order, so this is the task-space law's feedback (gain K = 20 /s, integrated on t
 command side: integral action on the tracking error) with the feed-forward of a path that
 already is the law's, as the path's own step over a period (so open loop the command is
 the path, sample for sample). Everything but the measurement is known before the run, so
-``w_k`` is computed then, one value per controller instant (``set_path``), and held
-between them.
+``w_k`` is computed then, one value per controller instant (``set_path``), and stored in
+the run's Context: a piecewise-linear table in the numeric parameters of Drake's compiled
+``MultilayerPerceptron`` (one ReLU unit per controller instant, ``w(s) = w_0 + sum_k c_k
+relu(s - t_k)``, exactly the interpolant through the knots), read at a discrete clock's
+time. One Diagram therefore runs many trials in many Contexts, and Drake's tools for
+many runs (``MonteCarloSimulation``) work on it.
 
 The integrator is a discrete ``LinearSystem`` (``x <- x + dt v`` at the instants the drive
 samples the command) whose output is its state, so the drive holds the command between
@@ -56,14 +60,14 @@ of ``t_k + h``, ``h`` the plant step, and the feedback compares them with the pa
 limits (the Python law scales the whole motion instead; plans are timed within 0.9 of
 the limits, so on the paper's tasks neither binds).
 
-The desired joint path is set per run by ``closed_loop.py`` before simulating
-(``set_path``: the source's ``UpdateTrajectory``, a property of the System), as samples at
-the controller instants: :func:`joint_path_of_plan` gives them, the plan's checked joint
-path, or (a plan made without the check, or given as an SE(3) motion) the path the
-controller's law takes following the plan kinematically. Only those samples are read, so
-no spline is built for a run (building a cubic ``PiecewisePolynomial`` through a 7 s
-path's samples cost 3 ms); :func:`joint_trajectory_of_plan` is the path as a cubic Hermite
-spline, for plotting or driving a bare station.
+The desired joint path is set per run, in the run's Context, before simulating
+(:meth:`JointTrajectoryController.set_path`; the pipeline does it when it plans a trial
+in a Context), as samples at the controller instants: :func:`joint_path_of_plan` gives
+them, the plan's checked joint path, or (a plan made without the check, or given as an
+SE(3) motion) the path the controller's law takes following the plan kinematically.
+Only those samples are read, so no spline is built for a run;
+:func:`joint_trajectory_of_plan` is the path as a cubic Hermite spline, for plotting or
+driving a bare station.
 
 Not for: the task-space Python controller (``differential_ik.py``, the paper's
 baseline), the drive (``diagrams/station.py``).
@@ -76,7 +80,8 @@ import math
 import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
-    LinearSystem, MatrixGain, Multiplexer, Saturation, TrajectorySource,
+    AffineSystem, LinearSystem, MatrixGain, MultilayerPerceptron, Multiplexer, PerceptronActivationType,
+    Saturation,
 )
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -84,12 +89,17 @@ from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.differential_ik_law import DEFAULT_POSITION_GAIN, DEFAULT_TIME_STEP_S, DifferentialIKLaw
 
 __all__ = ["JointTrajectoryController", "joint_path_of_plan", "joint_trajectory_of_plan", "joint_spline",
-           "law_for_plant", "JOINT_PATH_AGREEMENT_M"]
+           "law_for_plant", "JOINT_PATH_AGREEMENT_M",
+           "DEFAULT_MAX_PATH_DURATION_S"]
 
 # A plan's joint path is used as it is when its forward kinematics meets the plan's
 # critical configurations this closely (a path that no longer belongs to the plan, for
 # example after a splice, is re-derived instead).
 JOINT_PATH_AGREEMENT_M = 1e-3
+
+# The longest joint path the compiled controller's table holds by default, s of
+# simulation time (its cost per update grows with it: about 2 us per 1,000 knots).
+DEFAULT_MAX_PATH_DURATION_S = 60.0
 
 
 def joint_spline(t: np.ndarray, q: np.ndarray) -> PiecewisePolynomial:
@@ -187,6 +197,13 @@ class JointTrajectoryController(Diagram):
 
     (6,) joint positions in UR joint order. See the module docstring for the law.
 
+    The desired path lives in the Context, not on the System: :meth:`set_path` writes the
+    run's ``w_k`` into the numeric parameters of a piecewise-linear table (Drake's
+    compiled ``MultilayerPerceptron`` with one ReLU unit per controller instant, which is
+    exactly the linear interpolant through the knots), read at a discrete clock's time.
+    So one controller serves many runs in many Contexts at once, and the 100 Hz loop
+    evaluates only C++ systems.
+
     Parameters
     ----------
     position_lower, position_upper : array (6,)
@@ -197,25 +214,39 @@ class JointTrajectoryController(Diagram):
         Update period, s (the drive's command period).
     position_gain : float
         K, 1/s.
+    lead_s : float
+        How much later than the update's instant the feedback reads the path (see the
+        module docstring).
+    max_duration_s : float
+        The longest path (simulation time from 0 to its last sample) the table holds;
+        its width is one unit per controller period of it.
     """
 
     def __init__(self, *, position_lower, position_upper, velocity_limits,
                  time_step: float = DEFAULT_TIME_STEP_S, position_gain: float = DEFAULT_POSITION_GAIN,
-                 lead_s: float = 0.0):
+                 lead_s: float = 0.0, max_duration_s: float = DEFAULT_MAX_PATH_DURATION_S):
         super().__init__()
         self.lead_s = float(lead_s)
         n = len(position_lower)
+        self._num_joints = n
         self.time_step = float(time_step)
         self.position_gain = float(position_gain)
+        self.max_duration_s = float(max_duration_s)
+        self.num_knots = int(math.ceil(self.max_duration_s / self.time_step)) + 4
         builder = DiagramBuilder()
-        # The run's w_k (module docstring), held between controller instants; a
-        # placeholder until a run sets its trajectory: zero.
-        self._source = builder.AddNamedSystem("joint_trajectory", TrajectorySource(
-            PiecewisePolynomial(np.zeros((n, 1)))))
-        self._path = (np.zeros(1), np.zeros((1, n)))
+        dt = self.time_step
+        # The controller's clock: x <- x + dt at every controller instant, output x (the
+        # instant's time as the update at that instant sees it).
+        self._clock = builder.AddNamedSystem("clock", AffineSystem(
+            A=np.eye(1), B=np.zeros((1, 0)), f0=[dt], C=np.eye(1), D=np.zeros((1, 0)), y0=[0.0],
+            time_period=dt))
+        # The run's w_k (module docstring) as a function of the clock: a table in the
+        # Context's parameters (zero until a run sets its path).
+        self._table = builder.AddNamedSystem("joint_trajectory", MultilayerPerceptron(
+            [1, self.num_knots, n], PerceptronActivationType.kReLU))
         mux = builder.AddNamedSystem("desired_and_measured", Multiplexer([n, n]))
         identity = np.eye(n)
-        K, dt = self.position_gain, self.time_step
+        K = self.position_gain
         # dt * v = w_k - dt K q_measured: one step of the command.
         step = builder.AddNamedSystem("feed_forward_and_feedback", MatrixGain(
             np.hstack([identity, -dt * K * identity])))
@@ -228,7 +259,8 @@ class JointTrajectoryController(Diagram):
             A=identity, B=identity, C=identity, D=np.zeros((n, n)), time_period=dt))
         position_limit = builder.AddNamedSystem("joint_position_limits", Saturation(
             np.asarray(position_lower, dtype=float), np.asarray(position_upper, dtype=float)))
-        builder.Connect(self._source.get_output_port(), mux.get_input_port(0))
+        builder.Connect(self._clock.get_output_port(), self._table.get_input_port())
+        builder.Connect(self._table.get_output_port(), mux.get_input_port(0))
         builder.ExportInput(mux.get_input_port(1), "q_measured")
         builder.Connect(mux.get_output_port(), step.get_input_port())
         builder.Connect(step.get_output_port(), speed_limit.get_input_port())
@@ -242,41 +274,56 @@ class JointTrajectoryController(Diagram):
 
     @classmethod
     def for_law(cls, law: DifferentialIKLaw, **kwargs) -> "JointTrajectoryController":
-        """A controller with ``law``'s limits, period and gain (``kwargs``: ``lead_s``)."""
+        """A controller with ``law``'s limits, period and gain (``kwargs``: ``lead_s``,
+        ``max_duration_s``)."""
         return cls(position_lower=law.position_lower, position_upper=law.position_upper,
                    velocity_limits=law.velocity_limits, time_step=law.time_step, position_gain=law.position_gain,
                    **kwargs)
 
-    def set_path(self, t, q) -> None:
-        """The desired joint path: positions ``q`` (m, 6) at simulation times ``t`` (m,)
-        (increasing; :func:`joint_path_of_plan`), linear between samples, held before
-        the first and after the last.
+    def set_path(self, root_context: Context, t, q) -> None:
+        """The desired joint path of the run in ``root_context``: positions ``q`` (m, 6)
+        at simulation times ``t`` (m,) (increasing; :func:`joint_path_of_plan`), linear
+        between samples, held before the first and after the last.
 
-        Sets the source's ``w_k`` at every controller instant ``t_k = k dt`` up to the
-        path's end (held after it), each held over ``[t_k - dt/2, t_k + dt/2)`` so the
-        update at ``t_k`` reads it whatever the rounding of ``t_k``. A path sampled at
-        the controller instants (a plan's) is read at its samples.
+        Writes the source's ``w_k`` at every controller instant ``t_k = k dt`` up to the
+        path's end (held after it) into the Context's table. A path sampled at the
+        controller instants (a plan's) is read at its samples. Raises ``ValueError`` when
+        the path ends later than ``max_duration_s``.
         """
-        self._path = (np.array(t, dtype=float), np.array(q, dtype=float))
+        t = np.array(t, dtype=float)
+        q = np.array(q, dtype=float)
         dt, K = self.time_step, self.position_gain
-        grid = dt * np.arange(int(math.ceil(self._path[0][-1] / dt)) + 3)
-        w = self._at(grid + 2.0 * dt) - self._at(grid + dt) + dt * K * self._at(grid + self.lead_s)
-        breaks = np.concatenate([grid - 0.5 * dt, [grid[-1] + 0.5 * dt]])
-        self._source.UpdateTrajectory(PiecewisePolynomial.ZeroOrderHold(breaks, np.vstack([w, w[-1:]]).T))
-
-    def _at(self, times) -> np.ndarray:
-        """The desired path at ``times`` (k,): (k, 6)."""
-        t, q = self._path
-        return np.column_stack([np.interp(times, t, q[:, j]) for j in range(q.shape[1])])
+        count = int(math.ceil(t[-1] / dt)) + 3
+        if count > self.num_knots:
+            raise ValueError(f"the joint path ends at {t[-1]:.2f} s, later than the {self.max_duration_s:g} s "
+                             f"the compiled controller holds (simulation.controller.max_path_duration_s)")
+        grid = dt * np.arange(count)
+        at = lambda times: np.column_stack([np.interp(times, t, q[:, j]) for j in range(q.shape[1])])
+        w = at(grid + 2.0 * dt) - at(grid + dt) + dt * K * at(grid + self.lead_s)
+        # The linear interpolant through (t_k, w_k), flat after the last knot:
+        # w(s) = w_0 + sum_k c_k relu(s - t_k), c_k the change of slope at t_k.
+        slopes = np.vstack([np.diff(w, axis=0) / dt, np.zeros((1, w.shape[1]))])
+        changes = np.diff(np.vstack([np.zeros((1, w.shape[1])), slopes]), axis=0)
+        weights = np.zeros((self._num_joints, self.num_knots))
+        weights[:, :count] = changes.T
+        biases = np.zeros(self.num_knots)
+        biases[:count] = -grid
+        context = self._table.GetMyMutableContextFromRoot(root_context)
+        self._table.SetWeights(context, 0, np.ones((self.num_knots, 1)))
+        self._table.SetBiases(context, 0, biases)
+        self._table.SetWeights(context, 1, weights)
+        self._table.SetBiases(context, 1, w[0])
 
     def set_initial_command(self, root_context: Context, q) -> None:
-        """Sets the command integrator's state to ``q`` (6,), e.g. the initial positions."""
+        """Sets the command integrator's state to ``q`` (6,), e.g. the initial positions,
+        and the clock to the Context's time."""
         context = self._command.GetMyMutableContextFromRoot(root_context)
         context.SetDiscreteState(np.asarray(q, dtype=float))
+        self._clock.GetMyMutableContextFromRoot(root_context).SetDiscreteState([root_context.get_time()])
 
-    def desired_positions(self, root_context: Context) -> np.ndarray:
-        """q_d at the context's time, (6,)."""
-        return self._at([root_context.get_time()])[0]
+    def feed_forward(self, root_context: Context) -> np.ndarray:
+        """``w`` at the clock's time in ``root_context``, (6,)."""
+        return self._table.get_output_port().Eval(self._table.GetMyContextFromRoot(root_context))
 
 
 def law_for_plant(plant, model, frame_E, config) -> DifferentialIKLaw:
