@@ -43,7 +43,7 @@ from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
 
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.experiments import simulation
-from drake_lfd.experiments.judging import judge_run
+from drake_lfd.diagrams.judging import judge_run
 from drake_lfd.io.simulation_config import CONTROLLER_METHODS, PipelineConfig
 from drake_lfd.diagrams.station import build_station
 from drake_lfd.experiments.simulation import TrialRunner

@@ -33,7 +33,7 @@ no slow passage of the critical configurations), solved with SNOPT
    (unrefined, refined, plain) run once closed loop (a pipeline Diagram with the plan
    given, from the start of its checked joint path), side by side: planning time,
    executed duration (con_1 to the last critical configuration), closed-loop success
-   (``experiments/judging.py``), and the deviation from the demonstrated shape, two
+   (``diagrams/judging.py``), and the deviation from the demonstrated shape, two
    ways: the tube's own measure (the largest distance and angle of an executed pose from
    the composed path at the same path fraction; tube 150 mm, 30 deg) and the largest
    distance (and angle) from an executed pose to the nearest pose of the composed path,
@@ -57,7 +57,7 @@ from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.core.tasks import draw_trial
 from drake_lfd.diagrams.closed_loop import ClosedLoopRunner
 from drake_lfd.diagrams.pipeline import build_pipeline, joint_path_checker
-from drake_lfd.experiments.judging import judge_run
+from drake_lfd.diagrams.judging import judge_run
 from drake_lfd.experiments.pick_and_place import write_pick_and_place_tasks
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task

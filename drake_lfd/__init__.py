@@ -73,7 +73,7 @@ _ENTRY_POINTS = {
     "PipelineConfig": "drake_lfd.io.simulation_config",
     "ClosedLoopRunner": "drake_lfd.diagrams.closed_loop",
     "run_trials": "drake_lfd.experiments.simulation",
-    "judge_run": "drake_lfd.experiments.judging",
+    "judge_run": "drake_lfd.diagrams.judging",
 }
 
 __all__ = ["__version__", *_ENTRY_POINTS]

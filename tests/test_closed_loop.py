@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import drake_lfd.diagrams.closed_loop as mut
-import drake_lfd.experiments.judging as judging
+import drake_lfd.diagrams.judging as judging
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene
 from drake_lfd.core.tasks import Box, PathConstraint

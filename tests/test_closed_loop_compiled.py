@@ -16,7 +16,10 @@ from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.io.task_files import load_task
 from drake_lfd.robot.kinematics import UR5eKinematics
-from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryController, joint_trajectory_of_plan
+from drake_lfd.systems.joint_path_source import JointPathSource
+from drake_lfd.systems.joint_trajectory_controller import (
+    JointTrajectoryController, feed_forward_samples, joint_trajectory_of_plan,
+)
 from drake_lfd.systems.shell_monitor import _motion_bound, _motion_bounds
 
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -math.pi / 2, 0.0])
@@ -31,7 +34,13 @@ def test_the_default_controller_is_the_compiled_one_without_python_systems():
     assert isinstance(pipeline.controller, JointTrajectoryController)
     # Every system of the controller is one of Drake's C++ primitives.
     names = {type(system).__name__ for system in pipeline.controller.GetSystems()}
-    assert names == {"AffineSystem", "MultilayerPerceptron", "Multiplexer", "MatrixGain", "Saturation", "LinearSystem"}
+    assert names == {"AffineSystem", "Adder", "Demultiplexer", "Gain", "Multiplexer", "MatrixGain", "Saturation",
+                     "LinearSystem"}
+    # The only Python system feeding it, the joint-path source, has no event in the 100 Hz
+    # loop: one periodic update per chunk of 25 controller periods.
+    assert isinstance(pipeline.source, JointPathSource)
+    attribute = pipeline.source.GetUniquePeriodicDiscreteUpdateAttribute()
+    assert attribute.period_sec() == pytest.approx(25 * pipeline.config.controller.time_step)
     # The monitor has no event of its own: it measures the joint log.
     assert pipeline.monitor.measures_log
 
@@ -126,66 +135,75 @@ def _controller_and_path():
     return controller, t, q, law
 
 
+def _fix_chunk(controller, context, t, q, k):
+    """Fixes the chunk holding controller instant k, as the joint-path source puts it out."""
+    M, dt = controller.chunk_samples, controller.time_step
+    first = (k // M) * M
+    w = feed_forward_samples(t, q, dt, controller.position_gain, controller.lead_s, first, M)
+    controller.chunk_input_port.FixValue(context, np.concatenate([[first * dt], q[0], w.ravel()]))
+
+
+def _step(controller, context):
+    update = controller.EvalUniquePeriodicDiscreteUpdate(context)
+    for group in range(update.num_groups()):
+        context.SetDiscreteState(group, update.get_vector(group).value().copy())
+
+
 def test_the_compiled_command_is_held_between_updates_without_feed_through():
     controller = _controller_and_path()[0]
     # The command depends on the measurement only through the integrator's state: the
     # drive holds it between updates and nothing upstream is evaluated at plant steps.
-    assert not controller.HasDirectFeedthrough(
-        controller.q_measured_input_port.get_index(), controller.q_command_output_port.get_index())
+    # (The chunk's q_0 passes to the command: it is the source's state, set once a run.)
+    assert not controller.HasDirectFeedthrough(controller.q_measured_input_port.get_index(),
+                                               controller.q_command_output_port.get_index())
 
 
 def test_open_loop_the_compiled_command_is_the_path_one_period_ahead_sample_for_sample():
     controller, t, q, _ = _controller_and_path()
     context = controller.CreateDefaultContext()
-    controller.set_path(context, t, q)
-    controller.set_initial_command(context, q[0])
     dt = controller.time_step
     desired = lambda time: np.array([np.interp(time, t, q[:, j]) for j in range(6)])
-    for k in range(60):
+    for k in range(60):  # across two chunk boundaries
         context.SetTime(k * dt)
+        _fix_chunk(controller, context, t, q, k)
+        # The sample the controller picks is the path's w_k, to the bit.
+        np.testing.assert_array_equal(
+            controller.feed_forward(context),
+            feed_forward_samples(t, q, dt, controller.position_gain, controller.lead_s, k, 1)[0])
         # The arm exactly on the path: no feedback, the feed-forward alone.
         controller.q_measured_input_port.FixValue(context, desired(k * dt))
         np.testing.assert_allclose(controller.q_command_output_port.Eval(context), desired((k + 1) * dt),
                                    atol=1e-12)
-        context.get_mutable_discrete_state().SetFrom(controller.EvalUniquePeriodicDiscreteUpdate(context))
+        _step(controller, context)
     # Held after the end: the command stays at the path's last sample.
     np.testing.assert_allclose(controller.q_command_output_port.Eval(context), q[-1], atol=1e-12)
 
 
-def test_two_contexts_of_one_controller_hold_two_paths():
+def test_two_contexts_of_one_controller_follow_their_own_chunks():
     controller, t, q, _ = _controller_and_path()
     first, second = controller.CreateDefaultContext(), controller.CreateDefaultContext()
-    controller.set_path(first, t, q)
-    controller.set_path(second, t, q[::-1])
-    for context in (first, second):
-        controller.set_initial_command(context, q[0])
-        context.SetTime(0.0)
+    _fix_chunk(controller, first, t, q, 0)
+    _fix_chunk(controller, second, t, q[::-1], 0)
     dt, K = controller.time_step, controller.position_gain
-    # w_0 (the path held before its start) differs: each Context has its own table.
+    # w_0 (the path held before its start) differs: each Context has its own chunk.
     np.testing.assert_allclose(controller.feed_forward(first), dt * K * q[0], atol=1e-12)
     np.testing.assert_allclose(controller.feed_forward(second), dt * K * q[-1], atol=1e-12)
-
-
-def test_a_path_longer_than_the_table_is_refused():
-    controller, t, q, _ = _controller_and_path()
-    with pytest.raises(ValueError, match="later than"):
-        controller.set_path(controller.CreateDefaultContext(), t + controller.max_duration_s, q)
 
 
 def test_the_compiled_feedback_pulls_the_command_towards_the_path_at_the_clipped_speed():
     controller, t, q, law = _controller_and_path()
     context = controller.CreateDefaultContext()
-    controller.set_path(context, t, q)
-    controller.set_initial_command(context, q[0])
+    _fix_chunk(controller, context, t, q, 0)
     dt, K = controller.time_step, controller.position_gain
     # 1 mrad behind on every joint, before the path starts: dt K of it corrected per period.
     controller.q_measured_input_port.FixValue(context, q[0] - 1e-3)
-    context.get_mutable_discrete_state().SetFrom(controller.EvalUniquePeriodicDiscreteUpdate(context))
+    _step(controller, context)
     np.testing.assert_allclose(controller.q_command_output_port.Eval(context), q[0] + dt * K * 1e-3, atol=1e-12)
     # Far behind: each joint's step is clipped at its speed limit.
     controller.q_measured_input_port.FixValue(context, q[0] - 1.0)
     before = controller.q_command_output_port.Eval(context).copy()
-    context.get_mutable_discrete_state().SetFrom(controller.EvalUniquePeriodicDiscreteUpdate(context))
+    context.SetTime(dt)
+    _step(controller, context)
     step = controller.q_command_output_port.Eval(context) - before
     np.testing.assert_allclose(step, dt * law.velocity_limits, rtol=1e-12)
 

@@ -190,7 +190,7 @@ def test_a_task_needing_the_wrist_3_winding_of_the_whole_plan_succeeds_in_closed
     from drake_lfd.core.tasks import ConcreteTask
     from drake_lfd.diagrams.closed_loop import ClosedLoopRunner
     from drake_lfd.diagrams.pipeline import build_pipeline
-    from drake_lfd.experiments.judging import judge_run
+    from drake_lfd.diagrams.judging import judge_run
 
     features = library_features(Library.open("paper6"))
     step = dual_quaternion_relative(features["span"].poses[0], features["span"].poses[-1])

@@ -15,7 +15,7 @@ from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.core.tasks import draw_trial
 from drake_lfd.diagrams.closed_loop import ClosedLoopRunner
 from drake_lfd.diagrams.pipeline import build_pipeline
-from drake_lfd.experiments.judging import judge_run
+from drake_lfd.diagrams.judging import judge_run
 from drake_lfd.io.demonstration_logs import read_rtde_csv
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task

@@ -15,7 +15,7 @@ from cli_subprocess import run_cli
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.core.tasks import draw_trial, rigid_transform_from_euler_zyx
 from drake_lfd.diagrams.pipeline import joint_path_checker
-from drake_lfd.experiments.judging import SUCCESS_POSITION_TOLERANCE_M, SUCCESS_ROTATION_TOLERANCE_RAD
+from drake_lfd.diagrams.judging import SUCCESS_POSITION_TOLERANCE_M, SUCCESS_ROTATION_TOLERANCE_RAD
 from drake_lfd.experiments.simulation import run_trial
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.plan_json import plan_json

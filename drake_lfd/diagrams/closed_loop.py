@@ -1,13 +1,13 @@
 """Closed-loop UR5e runs on the pipeline Diagram, one Diagram for many trials.
 
 :class:`ClosedLoopRunner` owns one :class:`~drake_lfd.diagrams.pipeline.Pipeline` and one
-Simulator and runs trials on them: for each it resets the Context, sets the task input,
-lets the planner system plan, puts the arm at rest at the initial configuration (inverse
-kinematics of the plan's first pose, elbow up, unless given), holds it for the settling
-time, then tracks the plan while the planner watches the task input. The
-critical-configuration errors are measured when each configuration is due, from the
-simulated joint positions by forward kinematics of E, independently of the controller.
-Judging a run against the success criteria is :mod:`drake_lfd.experiments.judging`'s job.
+Simulator and runs trials on them: for each it sets the trial up in the Context
+(``Pipeline.prepare_trial``: the task input, the plan, the arm at rest at the plan's
+start), holds it for the settling time, then tracks the plan until the Diagram ends the
+run, applying task changes on the way (the planner system then replans), and reads the
+result off the Context (``Pipeline.trial_result``). It adds what a Context does not hold:
+Meshcat recordings and wall-clock timings. Judging a run against the success criteria is
+:mod:`drake_lfd.diagrams.judging`'s job.
 
 The plant step of a run is 5 ms (a bare station's default is 1 ms). The plant's cost
 per step barely depends on the step (SAP's fixed overhead with PD-controlled
@@ -44,23 +44,19 @@ from drake_lfd.core.dual_quaternion import dual_quaternion_from_rigid_transform,
 from drake_lfd.core.tasks import ConcreteTask
 from drake_lfd.core.timing import TimedPlan, time_plan
 from drake_lfd.io.simulation_config import PipelineConfig
-from drake_lfd.diagrams.pipeline import Pipeline, build_pipeline
+from drake_lfd.diagrams.pipeline import Pipeline, TrialStart, build_pipeline
+from drake_lfd.diagrams.trial_result import ClosedLoopResult
 from drake_lfd.diagrams.recording_meshcat import recording_meshcat
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.diagrams.plan_markers import draw_plan
-from drake_lfd.robot.initial_ik import InitialConfiguration, solve_initial_configuration
-from drake_lfd.robot.kinematics import NUM_JOINTS, UR5eKinematics
-from drake_lfd.robot.scene import KinematicScene
-from drake_lfd.systems.joint_trajectory_controller import joint_path_of_plan
-from drake_lfd.systems.shell_monitor import BoxClearance
+from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.systems.trial_end import plan_end_time_s
 
 # The controller of runs whose task changes while the arm moves (replanning).
 TASK_SPACE_METHOD = "drake"
 
 __all__ = [
-    "CriticalError",
-    "ClosedLoopResult",
     "ClosedLoopRunner",
     "plan_through_joint_configurations",
     "run_closed_loop",
@@ -104,148 +100,16 @@ def plan_through_joint_configurations(
     return time_plan(np.array(poses), critical, **timing_options)
 
 
-# ------------------------------------------------------------------------------ results
-
-
-@dataclass(frozen=True)
-class CriticalError:
-    """How far E was from con_i when it was due.
-
-    Attributes
-    ----------
-    con : int
-        1-based.
-    time_s : float
-        Simulation time at which con_i was due.
-    position_m, rotation_rad : float
-        ``|p_WE(q) - p_con|`` and the angle of ``R_con^T R_WE(q)``; nan if the run
-        stopped before.
-    q : array, shape (6,)
-        Joint positions at that time (nan if not reached).
-    reached : bool
-        False when the run stopped before ``time_s``.
-    """
-
-    con: int
-    time_s: float
-    position_m: float
-    rotation_rad: float
-    q: np.ndarray
-    reached: bool = True
-
-
-@dataclass(frozen=True)
-class ClosedLoopResult:
-    """What a closed-loop run did.
-
-    Attributes
-    ----------
-    t : array, shape (m,)
-        Sample times (s) of the joint-state log (100 Hz by default).
-    q, qdot : array, shape (m, 6)
-        Measured joint positions (rad) and speeds (rad/s).
-    critical_errors : tuple of CriticalError
-    clearances : tuple of BoxClearance
-        Closest approach to each obstacle and safety shell.
-    plan_start_time_s : float
-        When the plan started (after settling).
-    sim_time_s, wall_time_s : float
-        Simulated time and the wall-clock time simulating it.
-    setup_wall_time_s : float
-        Wall-clock time placing the arm and setting the run up.
-    cpu_time_s : float
-        The process's CPU time simulating (insensitive to other processes' load).
-    stopped_early : bool
-        The shell monitor ended the run at a penetration.
-    stop_reason : str
-    controller : str
-    q_initial : array, shape (6,)
-    initial_configuration : InitialConfiguration or None
-        The inverse-kinematics result when ``q_initial`` was not given.
-    X_WB, X_tool0_E : RigidTransform
-    velocity_limits : array, shape (6,)
-        The UR5e's joint speed limits, rad/s.
-    """
-
-    t: np.ndarray
-    q: np.ndarray
-    qdot: np.ndarray
-    critical_errors: tuple
-    clearances: tuple
-    plan_start_time_s: float
-    sim_time_s: float
-    wall_time_s: float
-    stopped_early: bool
-    stop_reason: str
-    controller: str
-    q_initial: np.ndarray
-    initial_configuration: InitialConfiguration | None
-    X_WB: RigidTransform
-    X_tool0_E: RigidTransform
-    velocity_limits: np.ndarray
-    setup_wall_time_s: float = 0.0
-    cpu_time_s: float = 0.0
-
-    @property
-    def closest_clearance(self) -> BoxClearance | None:
-        if not self.clearances:
-            return None
-        return min(self.clearances, key=lambda c: c.distance_m)
-
-    @property
-    def min_shell_distance_m(self) -> float:
-        """Minimum signed distance to any obstacle or shell (``inf`` without boxes)."""
-        closest = self.closest_clearance
-        return math.inf if closest is None else closest.distance_m
-
-    @property
-    def min_distance_pair(self) -> tuple[str, str] | None:
-        """(robot geometry, box description) of the closest approach."""
-        closest = self.closest_clearance
-        return None if closest is None else (closest.robot_geometry, closest.describe())
-
-    @property
-    def max_joint_speed_fraction(self) -> float:
-        """max over samples and joints of ``|qdot| / limit``."""
-        if len(self.qdot) == 0:
-            return 0.0
-        return float(np.max(np.abs(self.qdot) / self.velocity_limits))
-
-    @property
-    def realtime_factor(self) -> float:
-        return self.sim_time_s / self.wall_time_s if self.wall_time_s > 0 else math.inf
-
-    def trial_fields(self) -> dict:
-        """The run's part of a ``simulate --json`` trial (docs/cli.rst), plain Python.
-
-        ``critical_errors``, ``min_shell_distance_m`` (None when the scene has no
-        obstacle or shell, or the value is not finite), ``max_joint_speed_fraction``,
-        ``t`` and ``q``. Unreached configurations have None errors.
-        """
-
-        def number(value):
-            return float(value) if math.isfinite(value) else None
-
-        return {
-            "critical_errors": [
-                {"con": e.con, "position_m": number(e.position_m), "rotation_rad": number(e.rotation_rad)}
-                for e in self.critical_errors
-            ],
-            "min_shell_distance_m": number(self.min_shell_distance_m),
-            "max_joint_speed_fraction": self.max_joint_speed_fraction,
-            "t": self.t.tolist(),
-            "q": self.q.tolist(),
-        }
-
-
-def _pose_errors(X_WE: RigidTransform, X_WE_desired: RigidTransform) -> tuple[float, float]:
-    position = float(np.linalg.norm(X_WE.translation() - X_WE_desired.translation()))
-    rotation = float(X_WE_desired.rotation().inverse().multiply(X_WE.rotation()).ToAngleAxis().angle())
-    return position, rotation
-
-
 class ClosedLoopRunner:
-    """Runs closed-loop trials on one pipeline Diagram and one Simulator.
+    """Runs closed-loop trials on one pipeline Diagram and one Simulator, with Meshcat
+    recordings and task changes during a run.
+
+    Each run sets its trial up in the Simulator's Context
+    (:meth:`Pipeline.prepare_trial <drake_lfd.diagrams.pipeline.Pipeline.prepare_trial>`),
+    initializes and advances until the Diagram ends the run (the pipeline's ``TrialEnd``),
+    and reads the result off the Context (:meth:`Pipeline.trial_result
+    <drake_lfd.diagrams.pipeline.Pipeline.trial_result>`): the same path
+    ``MonteCarloSimulation`` takes, with nothing written into a System.
 
     Parameters
     ----------
@@ -259,12 +123,9 @@ class ClosedLoopRunner:
         self.pipeline = pipeline
         self.meshcat = record_meshcat
         self.simulator = Simulator(pipeline)
-        station = pipeline.station
-        self.kinematics = UR5eKinematics(X_WB=station.X_WB, X_tool0_E=station.X_tool0_E)
-        # The collision scene of the initial inverse kinematics, built once for all trials.
-        self._ik_scene = KinematicScene(station.workcell)
-        self._velocity_limits = station.plant.GetVelocityUpperLimits()[:NUM_JOINTS].copy()
+        self.kinematics = pipeline.kinematics
         self._task_space: ClosedLoopRunner | None = None
+        self._start: TrialStart | None = None
 
     def _task_space_runner(self) -> "ClosedLoopRunner":
         """A runner on a sibling pipeline with the Python task-space controller (made once)."""
@@ -273,18 +134,12 @@ class ClosedLoopRunner:
                                                 record_meshcat=self.meshcat)
         return self._task_space
 
-    def plan(self, task: ConcreteTask | None = None) -> ScheduledPlan:
-        """Resets the Context, sets the task and plans it (what :meth:`run` starts with)."""
-        pipeline = self.pipeline
-        context = self.simulator.get_mutable_context()
-        pipeline.SetDefaultContext(context)
-        context.SetTime(0.0)
-        if pipeline.planner is None:
-            return pipeline.plan_output_port.Eval(context)
-        if task is None:
-            raise ValueError("this pipeline plans: give it a task")
-        pipeline.task_input_port.FixValue(context, task)
-        return pipeline.planner.plan_now(context)
+    def plan(self, task: ConcreteTask | None = None, *, q_initial: np.ndarray | None = None) -> ScheduledPlan:
+        """Sets the trial ``task`` up in the Simulator's Context and returns its plan (what
+        :meth:`run` starts with; raises ``UnreachableConfigurationError``, an InputError,
+        when the plan's first pose is unreachable)."""
+        self._start = self.pipeline.prepare_trial(self.simulator.get_mutable_context(), task, q_initial=q_initial)
+        return self._start.plan
 
     def run(
         self,
@@ -309,7 +164,7 @@ class ClosedLoopRunner:
         record_html : path, optional
             Write a self-contained Meshcat replay there (needs ``record_meshcat``).
         scheduled : ScheduledPlan, optional
-            The result of :meth:`plan` just called (skips planning again).
+            The result of :meth:`plan` just called (the trial is set up: not again).
         task_changes : sequence of (time_s, ConcreteTask)
             The task input changes to each task at its simulation time (for example the
             cup to pour into was moved); the planner system replans from where the arm
@@ -324,113 +179,58 @@ class ClosedLoopRunner:
         """
         if task_changes and self.pipeline.compiled:
             # Replanning during a run: the plan in force changes inside the Diagram, which
-            # the Python controller follows from the plan port (the compiled one tracks a
-            # joint path set before the run).
+            # the Python controller follows from the plan port (the compiled one follows the
+            # joint path of the plan it started with).
             return self._task_space_runner().run(task, q_initial=q_initial, record_html=record_html,
                                                  task_changes=task_changes)
         setup_start = time.perf_counter()
         pipeline, station, simulator = self.pipeline, self.pipeline.station, self.simulator
-        if scheduled is None:
-            scheduled = self.plan(task)
+        if scheduled is None or self._start is None or self._start.plan is not scheduled:
+            scheduled = self.plan(task, q_initial=q_initial)
+        start = self._start
         if scheduled is None or not scheduled.planned:
             return scheduled, None
         context = simulator.get_mutable_context()
-        initial_configuration = None
-        joint_path = scheduled.result.joint_path
-        if q_initial is None and joint_path is not None:
-            # The plan-time check chose the start (IK branch and windings) for the whole
-            # plan: start where its joint path starts.
-            q_initial = joint_path.q[0]
-        if q_initial is None:
-            initial_configuration = solve_initial_configuration(
-                scheduled.X_WE_desired(0.0), X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
-                obstacles=station.obstacles, safety_shells=station.safety_shells, scene=self._ik_scene)
-            q_initial = initial_configuration.q
-        q_initial = np.asarray(q_initial, dtype=float)
-        station.set_initial_positions(context, q_initial)
-        if pipeline.compiled:
-            pipeline.controller.set_path(context, *joint_path_of_plan(scheduled, q_initial, pipeline.law))
-            pipeline.controller.set_initial_command(context, q_initial)
-        pipeline.logger.FindMutableLog(context).Clear()
         visualizer = station.visualizer
         recording = record_html is not None and visualizer is not None
         if self.meshcat is not None:
-            draw_plan(self.meshcat, scheduled.timed)  # the planned path and the critical configurations
-        if recording:
-            X_critical = [scheduled.timed.X_WE_list()[i] for i in scheduled.timed.critical_indices]
-            target = 0.5 * (station.X_WB.translation() + np.mean([X.translation() for X in X_critical], axis=0))
-            self.meshcat.SetCameraPose(camera_in_world=target + [0.9, -1.0, 0.55], target_in_world=target)
+            draw_plan(self.meshcat, scheduled.timed)
+            if recording:
+                target = scheduled.timed.X_WE_list()[0].translation()
+                self.meshcat.SetCameraPose(camera_in_world=target + [0.9, -1.0, 0.55], target_in_world=target)
             visualizer.DeleteRecording()
             visualizer.StartRecording(set_transforms_while_recording=False)
         simulator.Initialize()  # setup, as the bare station's in bench_pipeline.py
         setup_wall_time_s = time.perf_counter() - setup_start
 
         wall_start, cpu_start = time.perf_counter(), time.process_time()
-        plant, model = station.plant, station.model
-        plant_context = plant.GetMyContextFromRoot(context)
-        stopped_early, stop_reason = False, ""
-        critical_errors = []
-        num_cons = len(scheduled.timed.critical_indices)
+        stop_reason = ""
         changes = sorted(task_changes, key=lambda change: change[0])
-        for con in range(1, num_cons + 1):
-            # The planner may replan while the arm moves: advance until the due time
-            # of this configuration in the plan in force no longer moves.
-            t_due = float(scheduled.due_times_s()[con - 1])
-            while not stopped_early:
-                scheduled = pipeline.plan_output_port.Eval(context)
-                t_due = float(scheduled.due_times_s()[con - 1])
-                if changes and changes[0][0] <= min(t_due, context.get_time()) + 1e-12:
-                    pipeline.task_input_port.FixValue(context, changes.pop(0)[1])
-                    continue
-                if context.get_time() >= t_due - 1e-12:
-                    break
-                target = min(t_due, changes[0][0]) if changes else t_due
-                status = simulator.AdvanceTo(target)
-                if status.reason() == status.ReturnReason.kReachedTerminationCondition:
-                    stopped_early, stop_reason = True, status.message()
-            if stopped_early:
-                nan6 = np.full(NUM_JOINTS, np.nan)
-                critical_errors.append(CriticalError(con, t_due, math.nan, math.nan, nan6, reached=False))
+        while True:
+            if changes and changes[0][0] <= context.get_time() + 1e-12:
+                pipeline.task_input_port.FixValue(context, changes.pop(0)[1])
                 continue
-            X_WE_desired = scheduled.timed.X_WE_critical()[con - 1]  # the plan's pose of con_i
-            q = plant.GetPositions(plant_context, model).copy()
-            position, rotation = _pose_errors(self.kinematics.X_WE(q), X_WE_desired)
-            critical_errors.append(CriticalError(con, t_due, position, rotation, q))
-        if pipeline.monitor.measures_log:
-            # The shell monitor measures the run's joint-state log, in one batch.
-            log = pipeline.logger.GetLog(pipeline.logger.GetMyContextFromRoot(context))
-            pipeline.monitor.measure_log(context, log.sample_times(), log.data()[:NUM_JOINTS].T)
+            # To the end of the plan in force (the Diagram would end the run at its first
+            # check after it; stopping at the end keeps the log to the plan's own span).
+            end = plan_end_time_s(pipeline.plan_output_port.Eval(context))
+            if end is None or context.get_time() >= end - 1e-12:
+                break
+            status = simulator.AdvanceTo(min(end, changes[0][0]) if changes else end)
+            if status.reason() == status.ReturnReason.kReachedTerminationCondition:
+                stop_reason = status.message()
+                break
         wall_time_s, cpu_time_s = time.perf_counter() - wall_start, time.process_time() - cpu_start
         scheduled = pipeline.plan_output_port.Eval(context)
-
         if recording:
             visualizer.StopRecording()
             visualizer.PublishRecording()
             atomic_write_bytes(Path(record_html), self.meshcat.StaticHtml().encode())
-
-        log = pipeline.logger.FindLog(context)
-        data = log.data()
-        monitor = pipeline.monitor
-        return scheduled, ClosedLoopResult(
-            t=log.sample_times().copy(),
-            q=data[:NUM_JOINTS].T.copy(),
-            qdot=data[NUM_JOINTS:].T.copy(),
-            critical_errors=tuple(critical_errors),
-            clearances=tuple(monitor.clearances(monitor.GetMyContextFromRoot(context))),
-            plan_start_time_s=scheduled.start_time_s,
-            sim_time_s=context.get_time(),
-            wall_time_s=wall_time_s,
-            stopped_early=stopped_early,
-            stop_reason=stop_reason,
-            controller=pipeline.config.controller.method,
-            q_initial=q_initial,
-            initial_configuration=initial_configuration,
-            X_WB=station.X_WB,
-            X_tool0_E=station.X_tool0_E,
-            velocity_limits=self._velocity_limits,
-            setup_wall_time_s=setup_wall_time_s,
-            cpu_time_s=cpu_time_s,
-        )
+        end = plan_end_time_s(scheduled)
+        early = end is not None and context.get_time() < end - 1e-9
+        result = pipeline.trial_result(
+            context, stop_reason=stop_reason if early else "", wall_time_s=wall_time_s, cpu_time_s=cpu_time_s,
+            setup_wall_time_s=setup_wall_time_s, initial_configuration=start.initial_configuration)
+        return scheduled, result
 
 
 def run_closed_loop(

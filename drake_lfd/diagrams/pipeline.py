@@ -1,18 +1,15 @@
-"""The whole pipeline as one Diagram: library -> planner -> trajectory -> diff IK -> UR5e.
+"""The whole pipeline as one Diagram: library -> planner -> trajectory -> controller -> UR5e.
 
 :class:`Pipeline` wires the stages in pipeline order, one ``Connect`` per arrow. With the
 default, compiled controller (``controller.method: compiled``)::
 
     FeatureLibrarySystem --library--> PlannerSystem <--task-- (exported input "task")
-    PlannerSystem --plan--> (exported output "plan"; the runner sets the plan's joint path
-                             on the controller's TrajectorySource)
+    PlannerSystem --plan--> JointPathSource        (systems/joint_path_source.py)
+    JointPathSource --chunk--> JointTrajectoryController   (systems/joint_trajectory_controller.py)
     JointTrajectoryController --q_command--> Station (ur5e.position_command)
-    Station --ur5e.position_measured--> JointTrajectoryController
+    Station --ur5e.position_measured--> JointTrajectoryController, JointPathSource
+    PlannerSystem --plan--> TrialEnd              (ends the run once the plan is executed)
     Station --ur5e.state--> joint logger; ShellMonitor measures the logged samples
-
-The planner system then plans at initialization only (no periodic check: the compiled
-controller tracks the joint path set before the run, and a run whose task changes is
-run on a sibling pipeline with the task-space controller, ``with_controller``).
 
 With the Python task-space controller (``drake`` or ``pseudo_inverse``, the paper's
 baseline)::
@@ -22,53 +19,84 @@ baseline)::
     DifferentialIKController --q_command--> Station (ur5e.position_command)
     Station --ur5e.position_measured--> DifferentialIKController
     Station --query_object, ur5e.position_measured--> ShellMonitor
-    Station --ur5e.state--> joint logger
+
+Everything a trial needs lives in its Context: the task on the ``task`` input, the plan
+in the planner's state, the run's joint path in the source's, the arm's positions, the
+log and the monitor's records. So one Diagram runs many trials, in turn or in several
+Contexts at once, and Drake's ``MonteCarloSimulation`` runs it:
+:meth:`Pipeline.make_simulator` draws a trial from a ``RandomGenerator``,
+:meth:`Pipeline.trial_succeeded` judges a finished run from its Context alone, and the
+``TrialEnd`` system stops the simulation once the plan has been executed, so any
+``final_time`` at or beyond a trial's end works. :meth:`Pipeline.prepare_trial` sets a
+trial up in a Context (plan, arm at the plan's start); :meth:`Pipeline.trial_result`
+reads the run off it.
 
 The scene (a :class:`~drake_lfd.robot.workcell.Workcell`: robot base, table under it,
 obstacles, safety shells, the tool) is fixed when the Diagram is built, and the planner
 system keeps the tool above the same table top (``Workcell.planner_floor``) that
-``drake-lfd plan`` uses; the task is an input, so one Diagram serves every trial of a task
-(``closed_loop.py`` runs them). With ``plan=`` instead of a library, a constant plan
-replaces the library and planner (for trying the closed loop on a given motion).
+``drake-lfd plan`` uses. With ``plan=`` instead of a library, a constant plan replaces the
+library and planner (for trying the closed loop on a given motion).
 
-Not for: running a simulation (``closed_loop.py``) or judging one
-(``experiments/judging.py``).
+Not for: the loop that runs trials with Meshcat recordings and task changes
+(``closed_loop.py``) or the success criteria (``judging.py``).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Mapping
+import math
+from typing import Mapping, NamedTuple
 
 import numpy as np
+from pydrake.common import RandomGenerator
 from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat
 from pydrake.math import RigidTransform, RollPitchYaw
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, System
 from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
 
 from drake_lfd.core.features import Feature
 from drake_lfd.core.similarity import Tolerances
-from drake_lfd.core.tasks import Box, ConcreteTask
+from drake_lfd.core.tasks import Box, ConcreteTask, Task, draw_trial
 from drake_lfd.core.timing import TimedPlan
+from drake_lfd.io.plan_json import describe_uncovered
 from drake_lfd.io.simulation_config import COMPILED_METHOD, PipelineConfig
+from drake_lfd.diagrams.judging import RunJudgement, judge_run
 from drake_lfd.diagrams.station import Station
+from drake_lfd.diagrams.trial_result import ClosedLoopResult, critical_errors_from_log
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.planning.span_index import prepared_library
+from drake_lfd.robot.initial_ik import InitialConfiguration, solve_initial_configuration
 from drake_lfd.robot.joint_path import JointPathChecker, JointPathLimits
-from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME
+from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, NUM_JOINTS, UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene
 from drake_lfd.robot.workcell import Workcell, table_under_robot
 from drake_lfd.systems.differential_ik import DifferentialIKController
 from drake_lfd.systems.feature_library import FeatureLibrarySystem
+from drake_lfd.systems.joint_path_source import JointPathSource
 from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryController, law_for_plant
 from drake_lfd.systems.plan_trajectory_source import PlanTrajectorySource
 from drake_lfd.systems.planner import PlannerSystem
 from drake_lfd.systems.shell_monitor import ShellMonitor
+from drake_lfd.systems.trial_end import TrialEnd, plan_end_time_s
 
-__all__ = ["Pipeline", "build_pipeline", "joint_path_checker", "scheduled_plan_from_timed"]
+__all__ = ["Pipeline", "TrialStart", "build_pipeline", "joint_path_checker", "scheduled_plan_from_timed"]
+
+
+class TrialStart(NamedTuple):
+    """How a trial was set up in a Context (:meth:`Pipeline.prepare_trial`).
+
+    ``plan``: the plan in the Context; ``q_initial``: where the arm starts (None when
+    nothing was planned); ``initial_configuration``: the inverse-kinematics result when
+    the start came from it (a plan without a checked joint path), else None.
+    """
+
+    plan: ScheduledPlan | None
+    q_initial: np.ndarray | None
+    initial_configuration: InitialConfiguration | None
 
 
 def joint_path_checker(workcell: Workcell, config: PipelineConfig | None = None) -> JointPathChecker:
@@ -168,6 +196,7 @@ class Pipeline(Diagram):
     def __init__(
         self,
         *,
+        task: Task | None = None,
         workcell: Workcell | None = None,
         X_WB: RigidTransform | None = None,
         X_tool0_E: RigidTransform | None = None,
@@ -188,13 +217,14 @@ class Pipeline(Diagram):
     ):
         super().__init__()
         # What it was built from, for a sibling with another controller (``with_controller``).
-        self._options = dict(workcell=workcell, X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles,
+        self._options = dict(task=task, workcell=workcell, X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles,
                              safety_shells=safety_shells, tool=tool, with_table=with_table, features=features,
                              planner=planner, policy=policy, plan=plan, config=config, meshcat=meshcat,
                              accept_demonstrations=accept_demonstrations, joint_check=joint_check, cost=cost,
                              refine=refine)
         config = (PipelineConfig() if config is None else config).checked()
         self.config = config
+        self.task = task
         if plan is None and features is None:
             raise ValueError("a pipeline needs a library (features) or a given plan")
         if workcell is None:
@@ -237,12 +267,12 @@ class Pipeline(Diagram):
         #: and following a plan that has no joint path).
         self.law = law_for_plant(controller_plant, station.controller_model, frame_E, config.controller)
         if self.compiled:
-            # The plan reaches the compiled controller's own TrajectorySource as a joint
-            # path, set by the runner; no Python source is evaluated (or stepped) at run time.
-            self.source = None
+            # The plan reaches the compiled controller as its joint path, in chunks from the
+            # source; no Python system is evaluated in the 100 Hz loop.
+            lead_s = config.station.time_step if station.plant.has_sampled_output_ports() else 0.0
+            self.source = builder.AddNamedSystem("joint_path_source", JointPathSource(law=self.law, lead_s=lead_s))
             self.controller = builder.AddNamedSystem(
-                "differential_ik", JointTrajectoryController.for_law(
-                    self.law, lead_s=config.station.time_step if station.plant.has_sampled_output_ports() else 0.0))
+                "differential_ik", JointTrajectoryController.for_law(self.law, lead_s=lead_s))
         else:
             self.source = builder.AddNamedSystem("plan_trajectory_source", PlanTrajectorySource())
             self.controller = builder.AddNamedSystem("differential_ik", DifferentialIKController(
@@ -265,8 +295,12 @@ class Pipeline(Diagram):
             builder.ExportInput(self.planner.task_input_port, "task")
             if accept_demonstrations:
                 builder.ExportInput(self.library.demonstration_input_port, "demonstration")
-        if not self.compiled:
-            builder.Connect(plan_port, self.source.plan_input_port)
+        builder.Connect(plan_port, self.source.plan_input_port)
+        if self.compiled:
+            builder.Connect(station.GetOutputPort(station.port_name("position_measured")),
+                            self.source.q_measured_input_port)
+            builder.Connect(self.source.chunk_output_port, self.controller.chunk_input_port)
+        else:
             builder.Connect(self.source.X_WE_desired_output_port, self.controller.X_WE_desired_input_port)
             builder.Connect(self.source.V_WE_desired_output_port, self.controller.V_WE_desired_input_port)
         builder.Connect(self.controller.q_command_output_port, station.GetInputPort(station.port_name("position_command")))
@@ -278,12 +312,17 @@ class Pipeline(Diagram):
         state_port = station.GetOutputPort(station.port_name("state"))
         self.logger = LogVectorOutput(state_port, builder, config.log_period)
         self.logger.set_name("joint_state_logger")
+        # Ends the run once the plan is executed (checked every planner period).
+        self.trial_end = TrialEnd.AddToBuilder(builder=builder, plan_output_port=plan_port,
+                                               period=config.planner.check_period)
         builder.ExportOutput(plan_port, "plan")
         builder.ExportOutput(self.monitor.min_distance_output_port, "min_distance")
         builder.ExportOutput(state_port, station.port_name("state"))
         builder.BuildInto(self)
         self.set_name("pipeline")
         self.station = station
+        self.kinematics = UR5eKinematics(X_WB=station.X_WB, X_tool0_E=station.X_tool0_E)
+        self._ik_scene: KinematicScene | None = None  # the initial IK's collision scene, made on first use
 
     def with_controller(self, method: str) -> "Pipeline":
         """A new pipeline like this one (same scene, library, planner, Meshcat) with the
@@ -301,6 +340,139 @@ class Pipeline(Diagram):
     def task_input_port(self):
         return self.GetInputPort("task")
 
+    # -- trials in a Context ---------------------------------------------------------------
+    def prepare_trial(self, context: Context, trial: ConcreteTask | None = None, *,
+                      q_initial: np.ndarray | None = None) -> TrialStart:
+        """Sets a trial up in ``context`` (the root Context of this Diagram), ready for a
+        Simulator to initialize and advance it.
+
+        Resets the Context to its defaults at time 0, sets ``trial`` on the ``task``
+        input and plans it into the planner's state (a pipeline with a given plan keeps
+        its plan); when it planned, puts the arm at rest at ``q_initial``, by default the
+        start of the plan's checked joint path or (a plan made without the check) inverse
+        kinematics of its first pose, elbow up (raises ``UnreachableConfigurationError``,
+        an InputError, when unreachable). The Simulator's initialization then hands the
+        plan to the trajectory source and the controller.
+        """
+        self.SetDefaultContext(context)
+        context.SetTime(0.0)
+        self.logger.FindMutableLog(context).Clear()  # the log is the Context's, but no state
+        if self.planner is None:
+            scheduled = self.plan_output_port.Eval(context)
+        else:
+            if trial is None:
+                raise ValueError("this pipeline plans: give it a trial (a ConcreteTask)")
+            self.task_input_port.FixValue(context, trial)
+            scheduled = self.planner.plan_now(context)
+        if scheduled is None or not scheduled.planned:
+            return TrialStart(scheduled, None, None)
+        initial_configuration = None
+        joint_path = scheduled.result.joint_path
+        if q_initial is None and joint_path is not None:
+            # The plan-time check chose the start (IK branch and windings) for the whole
+            # plan: start where its joint path starts.
+            q_initial = joint_path.q[0]
+        if q_initial is None:
+            if self._ik_scene is None:
+                self._ik_scene = KinematicScene(self.workcell)
+            station = self.station
+            initial_configuration = solve_initial_configuration(
+                scheduled.X_WE_desired(0.0), X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
+                obstacles=station.obstacles, safety_shells=station.safety_shells, scene=self._ik_scene)
+            q_initial = initial_configuration.q
+        q_initial = np.array(q_initial, dtype=float)
+        self.station.set_initial_positions(context, q_initial)
+        return TrialStart(scheduled, q_initial, initial_configuration)
+
+    def make_simulator(self, generator: RandomGenerator) -> Simulator:
+        """A Simulator of this Diagram with one trial of the pipeline's task drawn from
+        ``generator`` (the same generator state gives the same trial), planned in its
+        Context, the arm at the plan's start: Drake's ``SimulatorFactory``.
+
+        Drake's ``RandomSimulation`` resets the Context with ``SetRandomContext`` after
+        this returns; the trial survives it: the task is a fixed input value (kept), the
+        planner plans it again at initialization (the same plan: planning is
+        deterministic, and the planner system remembers its last plan), and the arm's
+        start is also made the plant's default positions. That default is a property of
+        the System shared by every Context, so run the trials of one pipeline in one
+        thread (``MonteCarloSimulation``'s default); Contexts set up with
+        :meth:`prepare_trial` set their positions themselves and do not depend on it.
+        """
+        if self.task is None:
+            raise ValueError("make_simulator needs the pipeline's task (build_pipeline(task, ...))")
+        seed = int(generator()) % (2 ** 31)
+        simulator = Simulator(self)
+        start = self.prepare_trial(simulator.get_mutable_context(), draw_trial(self.task, seed))
+        if start.q_initial is not None:
+            self.station.plant.SetDefaultPositions(self.station.model, start.q_initial)
+        return simulator
+
+    def trial_result(self, context: Context, *, stop_reason: str = "", wall_time_s: float = 0.0,
+                     cpu_time_s: float = 0.0, setup_wall_time_s: float = 0.0,
+                     initial_configuration: InitialConfiguration | None = None) -> ClosedLoopResult | None:
+        """What the run in ``context`` did so far (None when nothing was planned).
+
+        The joint log, each critical configuration's error at its due time (from the
+        log), the closest approach to every obstacle and shell (the monitor's records, the
+        logged samples measured too), the trial's path constraints. The Context is not
+        changed. ``stop_reason``, the timings and ``initial_configuration`` are what the
+        caller knows of the run (a Simulator's status message, clocks).
+        """
+        scheduled = self.plan_output_port.Eval(context)
+        end = plan_end_time_s(scheduled)
+        if end is None:
+            return None
+        log = self.logger.FindLog(context)
+        t = log.sample_times().copy()
+        data = log.data()
+        q, qdot = data[:NUM_JOINTS].T.copy(), data[NUM_JOINTS:].T.copy()
+        now = context.get_time()
+        monitor = self.monitor
+        if monitor.measures_log:
+            clearances = monitor.clearances_with_log(context, t, q)
+        else:
+            clearances = monitor.clearances(monitor.GetMyContextFromRoot(context))
+        stopped_early = now < end - 1e-9
+        if stopped_early and not stop_reason:
+            stop_reason = f"the run ended at t = {now:.3f} s, before the plan's end at {end:.3f} s"
+        station = self.station
+        # The plant's state now, which the log would report at the next step, ends the
+        # samples the errors are read from (a con due at the run's very end).
+        h = station.time_step
+        t_next = (math.floor(now / h + 1e-9) + 1) * h
+        q_now = station.plant.GetPositions(station.plant.GetMyContextFromRoot(context), station.model)
+        t_all, q_all = (np.append(t, t_next), np.vstack([q, q_now])) if not len(t) or t_next > t[-1] else (t, q)
+        critical_errors = critical_errors_from_log(t_all, q_all, scheduled.due_times_s(),
+                                                   scheduled.timed.X_WE_critical(), now, self.kinematics, h)
+        return ClosedLoopResult(
+            t=t, q=q, qdot=qdot, critical_errors=critical_errors, clearances=tuple(clearances),
+            plan_start_time_s=scheduled.start_time_s, sim_time_s=now, wall_time_s=wall_time_s,
+            stopped_early=stopped_early, stop_reason=stop_reason, controller=self.config.controller.method,
+            q_initial=q[0].copy() if len(q) else np.full(NUM_JOINTS, math.nan),
+            initial_configuration=initial_configuration, X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
+            velocity_limits=self.kinematics.velocity_limits(), setup_wall_time_s=setup_wall_time_s,
+            cpu_time_s=cpu_time_s, path_constraints=tuple(scheduled.result.task.path_constraints))
+
+    def trial_judgement(self, context: Context) -> RunJudgement:
+        """The verdict on the run in ``context`` (the success criteria of
+        :func:`~drake_lfd.diagrams.judging.judge_run`, the trial's path constraints
+        included); a trial with nothing planned fails with the planner's reasons."""
+        scheduled = self.plan_output_port.Eval(context)
+        if scheduled is None:
+            return RunJudgement(False, ["nothing planned"])
+        plan = scheduled.result
+        if plan.status == "no_executable_plan":
+            return RunJudgement(False, ["no executable plan: " + segment.describe() for segment in plan.infeasible])
+        if not plan.planned:
+            return RunJudgement(False, ["demonstration requested: " + line for line in describe_uncovered(plan)])
+        return judge_run(self.trial_result(context), kinematics=self.kinematics)
+
+    def trial_succeeded(self, system: System, context: Context) -> float:
+        """1.0 when the run in ``context`` succeeded, else 0.0: Drake's
+        ``ScalarSystemFunction`` for ``MonteCarloSimulation`` (``system`` is this
+        pipeline)."""
+        return 1.0 if self.trial_judgement(context).success else 0.0
+
 
 def build_pipeline(task: ConcreteTask | None = None, features: Mapping[str, Feature] | None = None, *,
                    plan: TimedPlan | None = None, **kwargs) -> Pipeline:
@@ -310,4 +482,6 @@ def build_pipeline(task: ConcreteTask | None = None, features: Mapping[str, Feat
     through the ``task`` input)."""
     if task is not None and "workcell" not in kwargs:
         kwargs["workcell"] = Workcell.of(task, with_table=kwargs.get("with_table", True))
+    if isinstance(task, Task):
+        kwargs.setdefault("task", task)
     return Pipeline(features=features, plan=plan, **kwargs)

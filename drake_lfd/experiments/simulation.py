@@ -2,7 +2,7 @@
 
 Trial i (0-based) draws its concrete task with seed ``seed + i``; it is planned with the
 chosen planner, simulated closed loop on the UR5e and judged
-(:mod:`drake_lfd.experiments.judging`: critical configurations within 5 mm / 2 deg, path
+(:mod:`drake_lfd.diagrams.judging`: critical configurations within 5 mm / 2 deg, path
 constraints, no penetration of obstacles or shells, joint position and speed limits).
 All trials of a task run on one pipeline Diagram (:class:`TrialRunner`): the task is set
 in the Context, the plant is not rebuilt. A trial whose task the library cannot cover,
@@ -22,11 +22,12 @@ import numpy as np
 
 from pydrake.geometry import Meshcat
 
-from drake_lfd.diagrams.closed_loop import ClosedLoopResult, ClosedLoopRunner
+from drake_lfd.diagrams.closed_loop import ClosedLoopRunner
+from drake_lfd.diagrams.trial_result import ClosedLoopResult
 from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.diagrams.pipeline import build_pipeline
 from drake_lfd.diagrams.recording_meshcat import recording_meshcat
-from drake_lfd.experiments.judging import judge_run
+from drake_lfd.diagrams.judging import judge_run
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
 from drake_lfd.robot.kinematics import UR5eKinematics
@@ -119,20 +120,19 @@ class TrialRunner:
         """Plans, simulates and judges trial ``trial`` (1-based) drawn with ``seed``."""
         concrete = draw_trial(self.task, seed)
         runner = self._runner if record_html is None else self._recorder()
-        scheduled = runner.plan(concrete)
-        plan = scheduled.result
-        if plan.status == "no_executable_plan":
-            return TrialOutcome(trial, seed, plan, None, False,
-                                ["no executable plan: " + segment.describe() for segment in plan.infeasible])
-        if not plan.planned:
-            return TrialOutcome(trial, seed, plan, None, False,
-                                ["demonstration requested: " + line for line in describe_uncovered(plan)])
         try:
-            scheduled, run = runner.run(concrete, scheduled=scheduled, record_html=record_html)
+            scheduled = runner.plan(concrete)
         except InputError as error:  # con_1 unreachable for the UR5e
+            plan = runner.pipeline.plan_output_port.Eval(runner.simulator.get_context()).result
             return TrialOutcome(trial, seed, plan, None, False, [str(error)])
+        plan = scheduled.result
+        if not plan.planned:  # the pipeline's verdict: no executable plan, or a request
+            judgement = runner.pipeline.trial_judgement(runner.simulator.get_context())
+            return TrialOutcome(trial, seed, plan, None, False, list(judgement.failures))
+        scheduled, run = runner.run(concrete, scheduled=scheduled, record_html=record_html)
+        # The trial's path constraints travel with the run (``run.path_constraints``).
         judgement = judge_run(run, joint_limits=self._joint_limits, velocity_limits=self._velocity_limits,
-                              path_constraints=concrete.path_constraints, kinematics=runner.kinematics)
+                              kinematics=runner.kinematics)
         return TrialOutcome(trial, seed, scheduled.result, run, judgement.success, list(judgement.failures))
 
 

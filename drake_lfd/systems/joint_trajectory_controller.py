@@ -5,11 +5,12 @@ one the differential-IK law commands, sampled every controller period), and its 
 path is that path's forward kinematics. :class:`JointTrajectoryController` tracks it
 with no Python in the 100 Hz loop: a subsystem Diagram of pydrake primitives::
 
-    clock -> table(w_k: the path's feed-forward step and dt K q_d, per period) --\
+    chunk -> sample of the clock's instant (w_k: the path's feed-forward step and
+             dt K q_d, per period) ------------------\
                                                       Multiplexer -> MatrixGain (dt v) -> Saturation
     q_measured --------------------------------------/                     (joint speed limits)
-        -> LinearSystem (discrete, period dt, no feed-through: the command integrator)
-        -> Saturation (position limits) -> q_command
+        -> LinearSystem (discrete, period dt, no feed-through: the command integrator, from 0)
+        -> Adder (+ q_0, the run's initial positions) -> Saturation (position limits) -> q_command
 
 with the same law as the Python controller (``differential_ik.py``), written in joint space::
 
@@ -22,12 +23,15 @@ order, so this is the task-space law's feedback (gain K = 20 /s, integrated on t
 command side: integral action on the tracking error) with the feed-forward of a path that
 already is the law's, as the path's own step over a period (so open loop the command is
 the path, sample for sample). Everything but the measurement is known before the run, so
-``w_k`` is computed then, one value per controller instant (``set_path``), and stored in
-the run's Context: a piecewise-linear table in the numeric parameters of Drake's compiled
-``MultilayerPerceptron`` (one ReLU unit per controller instant, ``w(s) = w_0 + sum_k c_k
-relu(s - t_k)``, exactly the interpolant through the knots), read at a discrete clock's
-time. One Diagram therefore runs many trials in many Contexts, and Drake's tools for
-many runs (``MonteCarloSimulation``) work on it.
+``w_k`` is computed then, one value per controller instant, and travels to the
+controller in chunks: :class:`~drake_lfd.systems.joint_path_source.JointPathSource`
+reads the plan on its input port at the run's start, keeps the run's ``w_k`` in its
+Context (a cache entry of the plan and the arm's initial positions) and, once every
+``M`` periods (a Python event at 4 Hz, outside the 100 Hz loop), puts out the next ``M``
+samples as one vector; the controller picks the sample of its clock's instant with Drake
+primitives (see :class:`JointTrajectoryController`). One Diagram therefore runs many
+trials in many Contexts, and Drake's tools for many runs (``MonteCarloSimulation``) work
+on it.
 
 The integrator is a discrete ``LinearSystem`` (``x <- x + dt v`` at the instants the drive
 samples the command) whose output is its state, so the drive holds the command between
@@ -60,14 +64,12 @@ of ``t_k + h``, ``h`` the plant step, and the feedback compares them with the pa
 limits (the Python law scales the whole motion instead; plans are timed within 0.9 of
 the limits, so on the paper's tasks neither binds).
 
-The desired joint path is set per run, in the run's Context, before simulating
-(:meth:`JointTrajectoryController.set_path`; the pipeline does it when it plans a trial
-in a Context), as samples at the controller instants: :func:`joint_path_of_plan` gives
-them, the plan's checked joint path, or (a plan made without the check, or given as an
-SE(3) motion) the path the controller's law takes following the plan kinematically.
-Only those samples are read, so no spline is built for a run;
-:func:`joint_trajectory_of_plan` is the path as a cubic Hermite spline, for plotting or
-driving a bare station.
+The desired joint path of a run is given as samples at the controller instants:
+:func:`joint_path_of_plan` gives them, the plan's checked joint path, or (a plan made
+without the check, or given as an SE(3) motion) the path the controller's law takes
+following the plan kinematically. Only those samples are read, so no spline is built for
+a run; :func:`joint_trajectory_of_plan` is the path as a cubic Hermite spline, for
+plotting or driving a bare station.
 
 Not for: the task-space Python controller (``differential_ik.py``, the paper's
 baseline), the drive (``diagrams/station.py``).
@@ -80,8 +82,7 @@ import math
 import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
-    AffineSystem, LinearSystem, MatrixGain, MultilayerPerceptron, Multiplexer, PerceptronActivationType,
-    Saturation,
+    Adder, AffineSystem, Demultiplexer, Gain, LinearSystem, MatrixGain, Multiplexer, Saturation,
 )
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -89,17 +90,19 @@ from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.differential_ik_law import DEFAULT_POSITION_GAIN, DEFAULT_TIME_STEP_S, DifferentialIKLaw
 
 __all__ = ["JointTrajectoryController", "joint_path_of_plan", "joint_trajectory_of_plan", "joint_spline",
-           "law_for_plant", "JOINT_PATH_AGREEMENT_M",
-           "DEFAULT_MAX_PATH_DURATION_S"]
+           "law_for_plant", "JOINT_PATH_AGREEMENT_M", "CHUNK_SAMPLES", "chunk_size", "feed_forward_samples"]
 
 # A plan's joint path is used as it is when its forward kinematics meets the plan's
 # critical configurations this closely (a path that no longer belongs to the plan, for
 # example after a splice, is re-derived instead).
 JOINT_PATH_AGREEMENT_M = 1e-3
 
-# The longest joint path the compiled controller's table holds by default, s of
-# simulation time (its cost per update grows with it: about 2 us per 1,000 knots).
-DEFAULT_MAX_PATH_DURATION_S = 60.0
+# Controller instants per chunk of the path (the source's Python event runs once a chunk:
+# every 0.25 s at the 10 ms period, outside the 100 Hz loop).
+CHUNK_SAMPLES = 25
+
+# |w| bound of the chunk's gate (module docstring): w_k is about dt K |q| < 1 rad.
+_GATE_BOUND = 1.0e3
 
 
 def joint_spline(t: np.ndarray, q: np.ndarray) -> PiecewisePolynomial:
@@ -184,6 +187,24 @@ def joint_trajectory_of_plan(scheduled: ScheduledPlan, q_initial: np.ndarray,
     return joint_spline(*joint_path_of_plan(scheduled, q_initial, law))
 
 
+def chunk_size(num_joints: int, samples: int = CHUNK_SAMPLES) -> int:
+    """Length of a chunk vector: ``[t_start, q_0 (n), w_0 .. w_(M-1) (n each)]``."""
+    return 1 + num_joints + num_joints * samples
+
+
+def feed_forward_samples(t, q, time_step: float, position_gain: float, lead_s: float, first: int,
+                         count: int) -> np.ndarray:
+    """``w_k`` of the joint path ``q`` (m, n) at times ``t`` (m,) for controller instants
+    ``k = first .. first + count - 1``: (count, n) (module docstring; the path linear
+    between its samples, held before the first and after the last)."""
+    dt = time_step
+    grid = dt * (first + np.arange(count))
+    t = np.asarray(t, dtype=float)
+    q = np.asarray(q, dtype=float)
+    at = lambda times: np.column_stack([np.interp(times, t, q[:, j]) for j in range(q.shape[1])])
+    return at(grid + 2.0 * dt) - at(grid + dt) + dt * position_gain * at(grid + lead_s)
+
+
 class JointTrajectoryController(Diagram):
     """Joint position command tracking a desired joint trajectory, in compiled systems.
 
@@ -191,18 +212,21 @@ class JointTrajectoryController(Diagram):
 
         name: JointTrajectoryController
         input_ports:
+        - chunk
         - q_measured
         output_ports:
         - q_command
 
-    (6,) joint positions in UR joint order. See the module docstring for the law.
-
-    The desired path lives in the Context, not on the System: :meth:`set_path` writes the
-    run's ``w_k`` into the numeric parameters of a piecewise-linear table (Drake's
-    compiled ``MultilayerPerceptron`` with one ReLU unit per controller instant, which is
-    exactly the linear interpolant through the knots), read at a discrete clock's time.
-    So one controller serves many runs in many Contexts at once, and the 100 Hz loop
-    evaluates only C++ systems.
+    ``q_measured`` and ``q_command`` are (6,) joint positions in UR joint order.
+    ``chunk`` is the path's next samples, :func:`chunk_size` long: ``[t_start, q_0,
+    w_0 .. w_(M-1)]``, ``w_i`` the feed-forward and feedback term (module docstring) of
+    the controller instant ``t_start + i dt`` and ``q_0`` the run's initial command (the
+    arm's positions at its start), as :class:`~drake_lfd.systems.joint_path_source.JointPathSource`
+    puts it out. At each update the controller picks the chunk's sample of the clock's
+    instant with Drake primitives alone (a one-hot of the instant from the clock, and a
+    gate ``relu(w + B (h - 1)) - relu(-w + B (h - 1))`` that passes ``w`` exactly when
+    ``h = 1`` and gives exactly 0 when ``h = 0``), so the 100 Hz loop evaluates only C++
+    systems and the command is the same to the bit as from a table of all samples.
 
     Parameters
     ----------
@@ -215,115 +239,113 @@ class JointTrajectoryController(Diagram):
     position_gain : float
         K, 1/s.
     lead_s : float
-        How much later than the update's instant the feedback reads the path (see the
-        module docstring).
-    max_duration_s : float
-        The longest path (simulation time from 0 to its last sample) the table holds;
-        its width is one unit per controller period of it.
+        How much later than the update's instant the feedback reads the path (module
+        docstring); used by the source that fills the chunks.
+    chunk_samples : int
+        M, the controller instants in one chunk.
     """
 
     def __init__(self, *, position_lower, position_upper, velocity_limits,
                  time_step: float = DEFAULT_TIME_STEP_S, position_gain: float = DEFAULT_POSITION_GAIN,
-                 lead_s: float = 0.0, max_duration_s: float = DEFAULT_MAX_PATH_DURATION_S):
+                 lead_s: float = 0.0, chunk_samples: int = CHUNK_SAMPLES):
         super().__init__()
         self.lead_s = float(lead_s)
         n = len(position_lower)
-        self._num_joints = n
+        M = int(chunk_samples)
+        self.num_joints, self.chunk_samples = n, M
         self.time_step = float(time_step)
         self.position_gain = float(position_gain)
-        self.max_duration_s = float(max_duration_s)
-        self.num_knots = int(math.ceil(self.max_duration_s / self.time_step)) + 4
+        dt, K = self.time_step, self.position_gain
         builder = DiagramBuilder()
-        dt = self.time_step
-        # The controller's clock: x <- x + dt at every controller instant, output x (the
-        # instant's time as the update at that instant sees it).
-        self._clock = builder.AddNamedSystem("clock", AffineSystem(
-            A=np.eye(1), B=np.zeros((1, 0)), f0=[dt], C=np.eye(1), D=np.zeros((1, 0)), y0=[0.0],
-            time_period=dt))
-        # The run's w_k (module docstring) as a function of the clock: a table in the
-        # Context's parameters (zero until a run sets its path).
-        self._table = builder.AddNamedSystem("joint_trajectory", MultilayerPerceptron(
-            [1, self.num_knots, n], PerceptronActivationType.kReLU))
-        mux = builder.AddNamedSystem("desired_and_measured", Multiplexer([n, n]))
+        add = builder.AddNamedSystem
+        # The controller's clock: x <- x + dt at every controller instant; the update at
+        # an instant reads that instant's time.
+        clock = add("clock", AffineSystem(A=np.eye(1), B=np.zeros((1, 0)), f0=[dt], C=np.eye(1),
+                                          D=np.zeros((1, 0)), y0=[0.0], time_period=dt))
+        split = add("chunk_split", Demultiplexer([1, n, n * M]))
+        # One-hot h_i of the instant within the chunk, x_i = (clock - t_start) / dt - i:
+        # h_i = clamp(S (x_i + 1/2), 0, 1) - clamp(S (x_i - 1/2), 0, 1), exactly 0 or 1 for
+        # x_i within 1/(2S) of an integer (S = 4: a quarter of a period of rounding).
+        S = 4.0
+        times = add("clock_and_chunk_start", Multiplexer([1, 1]))
+        offsets = np.arange(M, dtype=float)
+        phase = add("instant_in_chunk", AffineSystem(
+            A=np.zeros((0, 0)), B=np.zeros((0, 2)), f0=np.zeros(0), C=np.zeros((2 * M, 0)),
+            D=np.tile([[S / dt, -S / dt]], (2 * M, 1)),
+            y0=np.concatenate([S * (0.5 - offsets), S * (-0.5 - offsets)])))
+        ramps = add("instant_ramps", Saturation(np.zeros(2 * M), np.ones(2 * M)))
+        one_hot = add("instant_one_hot", MatrixGain(np.hstack([np.eye(M), -np.eye(M)])))
+        # B (h - 1) per sample and joint: 0 for the instant's sample, -B for the others.
+        gate_level = add("gate_level", AffineSystem(
+            A=np.zeros((0, 0)), B=np.zeros((0, M)), f0=np.zeros(0), C=np.zeros((n * M, 0)),
+            D=_GATE_BOUND * np.kron(np.eye(M), np.ones((n, 1))), y0=np.full(n * M, -_GATE_BOUND)))
+        negate = add("negated_samples", Gain(-1.0, n * M))
+        high = add("gate_positive", Adder(2, n * M))
+        low = add("gate_negative", Adder(2, n * M))
+        relu_high = add("relu_positive", Saturation(np.zeros(n * M), np.full(n * M, np.inf)))
+        relu_low = add("relu_negative", Saturation(np.zeros(n * M), np.full(n * M, np.inf)))
+        # relu(w + B (h - 1)) - relu(-w + B (h - 1)), summed over the chunk's samples: w_k.
+        select = add("instant_sample", MatrixGain(np.hstack([
+            np.kron(np.ones((1, M)), np.eye(n)), -np.kron(np.ones((1, M)), np.eye(n))])))
+        gated = add("gated_samples", Multiplexer([n * M, n * M]))
+        mux = add("desired_and_measured", Multiplexer([n, n]))
         identity = np.eye(n)
-        K = self.position_gain
         # dt * v = w_k - dt K q_measured: one step of the command.
-        step = builder.AddNamedSystem("feed_forward_and_feedback", MatrixGain(
-            np.hstack([identity, -dt * K * identity])))
-        speed_limit = builder.AddNamedSystem("joint_speed_limits", Saturation(
+        step = add("feed_forward_and_feedback", MatrixGain(np.hstack([identity, -dt * K * identity])))
+        speed_limit = add("joint_speed_limits", Saturation(
             -dt * np.asarray(velocity_limits, dtype=float), dt * np.asarray(velocity_limits, dtype=float)))
-        # The command integrator: x <- x + dt v every period, output x (no feed-through:
-        # the drive holds it until the next update, and nothing upstream is evaluated
-        # between updates).
-        self._command = builder.AddNamedSystem("command_integrator", LinearSystem(
+        # The command integrator: x <- x + dt v every period, from 0 at the run's start;
+        # the command is q_0 + x (no feed-through: the drive holds it until the next
+        # update, and nothing upstream is evaluated between updates).
+        self._command = add("command_integrator", LinearSystem(
             A=identity, B=identity, C=identity, D=np.zeros((n, n)), time_period=dt))
-        position_limit = builder.AddNamedSystem("joint_position_limits", Saturation(
+        initial_plus = add("initial_plus_integral", Adder(2, n))
+        position_limit = add("joint_position_limits", Saturation(
             np.asarray(position_lower, dtype=float), np.asarray(position_upper, dtype=float)))
-        builder.Connect(self._clock.get_output_port(), self._table.get_input_port())
-        builder.Connect(self._table.get_output_port(), mux.get_input_port(0))
+        builder.ExportInput(split.get_input_port(), "chunk")
+        builder.Connect(clock.get_output_port(), times.get_input_port(0))
+        builder.Connect(split.get_output_port(0), times.get_input_port(1))
+        builder.Connect(times.get_output_port(), phase.get_input_port())
+        builder.Connect(phase.get_output_port(), ramps.get_input_port())
+        builder.Connect(ramps.get_output_port(), one_hot.get_input_port())
+        builder.Connect(one_hot.get_output_port(), gate_level.get_input_port())
+        builder.Connect(split.get_output_port(2), high.get_input_port(0))
+        builder.Connect(gate_level.get_output_port(), high.get_input_port(1))
+        builder.Connect(split.get_output_port(2), negate.get_input_port())
+        builder.Connect(negate.get_output_port(), low.get_input_port(0))
+        builder.Connect(gate_level.get_output_port(), low.get_input_port(1))
+        builder.Connect(high.get_output_port(), relu_high.get_input_port())
+        builder.Connect(low.get_output_port(), relu_low.get_input_port())
+        builder.Connect(relu_high.get_output_port(), gated.get_input_port(0))
+        builder.Connect(relu_low.get_output_port(), gated.get_input_port(1))
+        builder.Connect(gated.get_output_port(), select.get_input_port())
+        builder.Connect(select.get_output_port(), mux.get_input_port(0))
         builder.ExportInput(mux.get_input_port(1), "q_measured")
         builder.Connect(mux.get_output_port(), step.get_input_port())
         builder.Connect(step.get_output_port(), speed_limit.get_input_port())
         builder.Connect(speed_limit.get_output_port(), self._command.get_input_port())
-        builder.Connect(self._command.get_output_port(), position_limit.get_input_port())
+        builder.Connect(split.get_output_port(1), initial_plus.get_input_port(0))
+        builder.Connect(self._command.get_output_port(), initial_plus.get_input_port(1))
+        builder.Connect(initial_plus.get_output_port(), position_limit.get_input_port())
         builder.ExportOutput(position_limit.get_output_port(), "q_command")
+        self._select = select
         builder.BuildInto(self)
         self.set_name("joint_trajectory_controller")
+        self.chunk_input_port = self.GetInputPort("chunk")
         self.q_measured_input_port = self.GetInputPort("q_measured")
         self.q_command_output_port = self.GetOutputPort("q_command")
 
     @classmethod
     def for_law(cls, law: DifferentialIKLaw, **kwargs) -> "JointTrajectoryController":
         """A controller with ``law``'s limits, period and gain (``kwargs``: ``lead_s``,
-        ``max_duration_s``)."""
+        ``chunk_samples``)."""
         return cls(position_lower=law.position_lower, position_upper=law.position_upper,
                    velocity_limits=law.velocity_limits, time_step=law.time_step, position_gain=law.position_gain,
                    **kwargs)
 
-    def set_path(self, root_context: Context, t, q) -> None:
-        """The desired joint path of the run in ``root_context``: positions ``q`` (m, 6)
-        at simulation times ``t`` (m,) (increasing; :func:`joint_path_of_plan`), linear
-        between samples, held before the first and after the last.
-
-        Writes the source's ``w_k`` at every controller instant ``t_k = k dt`` up to the
-        path's end (held after it) into the Context's table. A path sampled at the
-        controller instants (a plan's) is read at its samples. Raises ``ValueError`` when
-        the path ends later than ``max_duration_s``.
-        """
-        t = np.array(t, dtype=float)
-        q = np.array(q, dtype=float)
-        dt, K = self.time_step, self.position_gain
-        count = int(math.ceil(t[-1] / dt)) + 3
-        if count > self.num_knots:
-            raise ValueError(f"the joint path ends at {t[-1]:.2f} s, later than the {self.max_duration_s:g} s "
-                             f"the compiled controller holds (simulation.controller.max_path_duration_s)")
-        grid = dt * np.arange(count)
-        at = lambda times: np.column_stack([np.interp(times, t, q[:, j]) for j in range(q.shape[1])])
-        w = at(grid + 2.0 * dt) - at(grid + dt) + dt * K * at(grid + self.lead_s)
-        # The linear interpolant through (t_k, w_k), flat after the last knot:
-        # w(s) = w_0 + sum_k c_k relu(s - t_k), c_k the change of slope at t_k.
-        slopes = np.vstack([np.diff(w, axis=0) / dt, np.zeros((1, w.shape[1]))])
-        changes = np.diff(np.vstack([np.zeros((1, w.shape[1])), slopes]), axis=0)
-        weights = np.zeros((self._num_joints, self.num_knots))
-        weights[:, :count] = changes.T
-        biases = np.zeros(self.num_knots)
-        biases[:count] = -grid
-        context = self._table.GetMyMutableContextFromRoot(root_context)
-        self._table.SetWeights(context, 0, np.ones((self.num_knots, 1)))
-        self._table.SetBiases(context, 0, biases)
-        self._table.SetWeights(context, 1, weights)
-        self._table.SetBiases(context, 1, w[0])
-
-    def set_initial_command(self, root_context: Context, q) -> None:
-        """Sets the command integrator's state to ``q`` (6,), e.g. the initial positions,
-        and the clock to the Context's time."""
-        context = self._command.GetMyMutableContextFromRoot(root_context)
-        context.SetDiscreteState(np.asarray(q, dtype=float))
-        self._clock.GetMyMutableContextFromRoot(root_context).SetDiscreteState([root_context.get_time()])
-
     def feed_forward(self, root_context: Context) -> np.ndarray:
-        """``w`` at the clock's time in ``root_context``, (6,)."""
-        return self._table.get_output_port().Eval(self._table.GetMyContextFromRoot(root_context))
+        """The ``w`` the controller reads at the clock's instant in ``root_context``, (6,)."""
+        return self._select.get_output_port().Eval(self._select.GetMyContextFromRoot(root_context))
 
 
 def law_for_plant(plant, model, frame_E, config) -> DifferentialIKLaw:

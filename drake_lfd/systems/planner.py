@@ -101,6 +101,7 @@ class PlannerSystem(LeafSystem):
         self._start_time_s = float(start_time_s)
         self._floor_z = floor_z
         self._checker = checker
+        self._last_plan: tuple | None = None  # (inputs' key, PlanResult) of the last first plan
         self.task_input_port = self.DeclareAbstractInputPort("task", AbstractValue.Make(object()))
         self.library_input_port = self.DeclareAbstractInputPort("library", AbstractValue.Make(object()))
         self._state_index = self.DeclareAbstractState(AbstractValue.Make(object()))
@@ -161,14 +162,23 @@ class PlannerSystem(LeafSystem):
         digest = task_fingerprint(task)
         inputs = (task, library)
         if current is None:
-            return ScheduledPlan(self.plan(task, library), self._start_time_s, digest, library.revision,
-                                 inputs=inputs)
+            return ScheduledPlan(self._first_plan(task, library, digest), self._start_time_s, digest,
+                                 library.revision, inputs=inputs)
         if current.task_fingerprint == digest and _library_digest(current) == library.digest:
             return dataclasses.replace(current, inputs=inputs)
         scheduled = replan(current, task, library.features, context.get_time(),
                            lambda sub_task: self.plan(sub_task, library),
                            task_digest=digest, library_revision=library.revision)
         return dataclasses.replace(scheduled, inputs=inputs)
+
+    def _first_plan(self, task: ConcreteTask, library: LibraryFeatures, digest: bytes) -> PlanResult:
+        """:meth:`plan`, remembering the last result: planning is deterministic, so a
+        Context reset to its defaults after a plan (``SetRandomContext`` in Drake's
+        ``RandomSimulation``) plans the same task again at initialization for free."""
+        key = (digest, task.seed, repr(task.timing), repr(task.path_constraints), library.digest)
+        if self._last_plan is None or self._last_plan[0] != key:
+            self._last_plan = (key, self.plan(task, library))
+        return self._last_plan[1]
 
     def plan_now(self, root_context: Context) -> ScheduledPlan | None:
         """Plans into the state right away (before a Simulator initializes, for example

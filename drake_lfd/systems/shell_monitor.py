@@ -291,7 +291,7 @@ class ShellMonitor(LeafSystem):
 
     # -- batches of logged samples ------------------------------------------------------------
     def measure_log(self, root_context, t: np.ndarray, q: np.ndarray) -> None:
-        """Measures the samples of a joint-state log not measured yet.
+        """Measures the samples of a joint-state log not measured yet, into the state.
 
         ``t`` (m,) and ``q`` (m, J) are the log of the run so far, sampled every monitor
         period from the start (the pipeline's joint-state logger). Only samples before the
@@ -302,19 +302,32 @@ class ShellMonitor(LeafSystem):
         if self._scene is None:
             return
         context = self.GetMyMutableContextFromRoot(root_context)
+        state = self._state_with_log(context, t, q)
+        if state is not None:
+            context.SetDiscreteState(self._state_index, state)
+
+    def clearances_with_log(self, root_context, t: np.ndarray, q: np.ndarray) -> list[BoxClearance]:
+        """:meth:`clearances` as they are once the log's samples (as in
+        :meth:`measure_log`) are measured too; the Context is left as it is."""
+        context = self.GetMyContextFromRoot(root_context)
+        state = self._state_with_log(context, t, q) if self._scene is not None else None
+        return self._records(context.get_discrete_state(self._state_index).value() if state is None else state)
+
+    def _state_with_log(self, context, t: np.ndarray, q: np.ndarray) -> np.ndarray | None:
+        """The state once the log's samples not measured yet are (None: none to measure)."""
         if not self._prepared:
             self._prepare(self.query_object_input_port.Eval(context))
         state = context.get_discrete_state(self._state_index).value().copy()
         done = int(state[-1])
         end = int(np.searchsorted(t, context.get_time(), side="left"))
         if end <= done:
-            return
+            return None
         signed_distance = self._scene.scene_graph.get_query_output_port().Eval(
             self._scene_graph_context).ComputeSignedDistancePairClosestPoints
         self._measure_batch(state, np.asarray(t[done:end], dtype=float), np.asarray(q[done:end], dtype=float),
                             signed_distance)
         state[-1] = float(end)
-        context.SetDiscreteState(self._state_index, state)
+        return state
 
     def _measure_batch(self, state: np.ndarray, t: np.ndarray, q: np.ndarray, signed_distance) -> None:
         """Updates ``state`` as :meth:`_sample` would for each of the samples ``q`` (K, J)
@@ -403,8 +416,10 @@ class ShellMonitor(LeafSystem):
 
     def clearances(self, context) -> list[BoxClearance]:
         """The record of each box, in the order of ``shell_geometry_ids``."""
+        return self._records(context.get_discrete_state(self._state_index).value())
+
+    def _records(self, state) -> list[BoxClearance]:
         n = len(self._box_ids)
-        state = context.get_discrete_state(self._state_index).value()
         records = []
         for j, box_id in enumerate(self._box_ids):
             index = int(state[n + j])

@@ -6,7 +6,8 @@ penetrates an obstacle or a safety shell, and the joints stay inside their posit
 speed limits (docs/method.rst, Closed loop and success). :func:`judge_run` returns the
 verdict with one line per failed criterion.
 
-Not for: running the simulation (``diagrams/closed_loop.py``).
+Not for: running the simulation (``pipeline.py``, ``closed_loop.py``) or the run's record
+(``trial_result.py``).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 from pydrake.math import RotationMatrix
 
 from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
-from drake_lfd.diagrams.closed_loop import ClosedLoopResult
+from drake_lfd.diagrams.trial_result import ClosedLoopResult
 from drake_lfd.robot.kinematics import UR5E_JOINT_NAMES, UR5eKinematics
 
 __all__ = ["RunJudgement", "judge_run", "SUCCESS_POSITION_TOLERANCE_M", "SUCCESS_ROTATION_TOLERANCE_RAD",
@@ -43,7 +44,7 @@ def judge_run(
     *,
     joint_limits: tuple[np.ndarray, np.ndarray] | None = None,
     velocity_limits: np.ndarray | None = None,
-    path_constraints: Sequence = (),
+    path_constraints: Sequence | None = None,
     position_tolerance_m: float = SUCCESS_POSITION_TOLERANCE_M,
     rotation_tolerance_rad: float = SUCCESS_ROTATION_TOLERANCE_RAD,
     singularity_margin: float = SUCCESS_SINGULARITY_MARGIN,
@@ -63,6 +64,8 @@ def judge_run(
       ``|sin q5|`` (wrist aligned) stay at or above it; a run through a singularity is
       not a success even when it ends at the right pose.
 
+    ``path_constraints``: by default the run's own (``result.path_constraints``, the
+    trial's), as ``simulate`` judges them; pass others to judge against those instead.
     ``kinematics``: the run's (its ``X_WB`` and ``X_tool0_E``), to save building one per
     run; by default made from the result's frames.
 
@@ -70,6 +73,8 @@ def judge_run(
     -------
     RunJudgement
     """
+    if path_constraints is None:
+        path_constraints = result.path_constraints
     if kinematics is None:
         kinematics = UR5eKinematics(X_WB=result.X_WB, X_tool0_E=result.X_tool0_E)
     if joint_limits is None:

@@ -1,0 +1,200 @@
+"""What a closed-loop run did: its joint log, its errors at the critical configurations,
+its clearances, as a plain record.
+
+:class:`ClosedLoopResult` is read off a run's Context (``Pipeline.trial_result``) and is
+what :mod:`drake_lfd.diagrams.judging` judges; :func:`critical_errors_from_log` measures
+each critical configuration's error at its due time from the joint-state log (linear
+between the log's samples), by forward kinematics of E, independently of the controller.
+
+Not for: running a simulation (``closed_loop.py``, ``pipeline.py``) or judging one
+(``judging.py``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.math import RigidTransform
+
+from drake_lfd.robot.initial_ik import InitialConfiguration
+from drake_lfd.robot.kinematics import NUM_JOINTS, UR5eKinematics
+from drake_lfd.systems.shell_monitor import BoxClearance
+
+__all__ = ["CriticalError", "ClosedLoopResult", "critical_errors_from_log", "pose_errors"]
+
+
+@dataclass(frozen=True)
+class CriticalError:
+    """How far E was from con_i when it was due.
+
+    Attributes
+    ----------
+    con : int
+        1-based.
+    time_s : float
+        Simulation time at which con_i was due.
+    position_m, rotation_rad : float
+        ``|p_WE(q) - p_con|`` and the angle of ``R_con^T R_WE(q)``; nan if the run
+        stopped before.
+    q : array, shape (6,)
+        Joint positions at that time (nan if not reached).
+    reached : bool
+        False when the run stopped before ``time_s``.
+    """
+
+    con: int
+    time_s: float
+    position_m: float
+    rotation_rad: float
+    q: np.ndarray
+    reached: bool = True
+
+
+@dataclass(frozen=True)
+class ClosedLoopResult:
+    """What a closed-loop run did.
+
+    Attributes
+    ----------
+    t : array, shape (m,)
+        Sample times (s) of the joint-state log (100 Hz by default).
+    q, qdot : array, shape (m, 6)
+        Measured joint positions (rad) and speeds (rad/s).
+    critical_errors : tuple of CriticalError
+    clearances : tuple of BoxClearance
+        Closest approach to each obstacle and safety shell.
+    plan_start_time_s : float
+        When the plan started (after settling).
+    sim_time_s, wall_time_s : float
+        Simulated time and the wall-clock time simulating it.
+    setup_wall_time_s : float
+        Wall-clock time placing the arm and setting the run up.
+    cpu_time_s : float
+        The process's CPU time simulating (insensitive to other processes' load).
+    stopped_early : bool
+        The shell monitor ended the run at a penetration.
+    stop_reason : str
+    controller : str
+    q_initial : array, shape (6,)
+    initial_configuration : InitialConfiguration or None
+        The inverse-kinematics result when ``q_initial`` was not given.
+    X_WB, X_tool0_E : RigidTransform
+    velocity_limits : array, shape (6,)
+        The UR5e's joint speed limits, rad/s.
+    path_constraints : tuple of PathConstraint
+        The trial's path constraints (``ConcreteTask.path_constraints``), which
+        :func:`~drake_lfd.diagrams.judging.judge_run` checks on the log.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    critical_errors: tuple
+    clearances: tuple
+    plan_start_time_s: float
+    sim_time_s: float
+    wall_time_s: float
+    stopped_early: bool
+    stop_reason: str
+    controller: str
+    q_initial: np.ndarray
+    initial_configuration: InitialConfiguration | None
+    X_WB: RigidTransform
+    X_tool0_E: RigidTransform
+    velocity_limits: np.ndarray
+    setup_wall_time_s: float = 0.0
+    cpu_time_s: float = 0.0
+    path_constraints: tuple = ()
+
+    @property
+    def closest_clearance(self) -> BoxClearance | None:
+        if not self.clearances:
+            return None
+        return min(self.clearances, key=lambda c: c.distance_m)
+
+    @property
+    def min_shell_distance_m(self) -> float:
+        """Minimum signed distance to any obstacle or shell (``inf`` without boxes)."""
+        closest = self.closest_clearance
+        return math.inf if closest is None else closest.distance_m
+
+    @property
+    def min_distance_pair(self) -> tuple[str, str] | None:
+        """(robot geometry, box description) of the closest approach."""
+        closest = self.closest_clearance
+        return None if closest is None else (closest.robot_geometry, closest.describe())
+
+    @property
+    def max_joint_speed_fraction(self) -> float:
+        """max over samples and joints of ``|qdot| / limit``."""
+        if len(self.qdot) == 0:
+            return 0.0
+        return float(np.max(np.abs(self.qdot) / self.velocity_limits))
+
+    @property
+    def realtime_factor(self) -> float:
+        return self.sim_time_s / self.wall_time_s if self.wall_time_s > 0 else math.inf
+
+    def trial_fields(self) -> dict:
+        """The run's part of a ``simulate --json`` trial (docs/cli.rst), plain Python.
+
+        ``critical_errors``, ``min_shell_distance_m`` (None when the scene has no
+        obstacle or shell, or the value is not finite), ``max_joint_speed_fraction``,
+        ``t`` and ``q``. Unreached configurations have None errors.
+        """
+
+        def number(value):
+            return float(value) if math.isfinite(value) else None
+
+        return {
+            "critical_errors": [
+                {"con": e.con, "position_m": number(e.position_m), "rotation_rad": number(e.rotation_rad)}
+                for e in self.critical_errors
+            ],
+            "min_shell_distance_m": number(self.min_shell_distance_m),
+            "max_joint_speed_fraction": self.max_joint_speed_fraction,
+            "t": self.t.tolist(),
+            "q": self.q.tolist(),
+        }
+
+
+def _pose_errors(X_WE: RigidTransform, X_WE_desired: RigidTransform) -> tuple[float, float]:
+    position = float(np.linalg.norm(X_WE.translation() - X_WE_desired.translation()))
+    rotation = float(X_WE_desired.rotation().inverse().multiply(X_WE.rotation()).ToAngleAxis().angle())
+    return position, rotation
+
+
+def pose_errors(X_WE: RigidTransform, X_WE_desired: RigidTransform) -> tuple[float, float]:
+    """``|p - p_desired|`` (m) and the angle of ``R_desired^T R`` (rad)."""
+    position = float(np.linalg.norm(X_WE.translation() - X_WE_desired.translation()))
+    rotation = float(X_WE_desired.rotation().inverse().multiply(X_WE.rotation()).ToAngleAxis().angle())
+    return position, rotation
+
+
+def critical_errors_from_log(t: np.ndarray, q: np.ndarray, due_times_s, X_WE_critical, end_time_s: float,
+                             kinematics: UR5eKinematics, plant_step_s: float) -> tuple[CriticalError, ...]:
+    """Each critical configuration's error when it was due, from a joint-state log.
+
+    ``t`` (m,) and ``q`` (m, 6) are the log; ``due_times_s`` and ``X_WE_critical`` the
+    plan's due time and pose of each con; ``end_time_s`` the time the run reached;
+    ``plant_step_s`` the discrete plant's step. The joint positions at a due time are the
+    plant's state in the Context then (the result of its last step at or before it), which
+    a periodic log reports at the next step's time: the log at that time, linear between
+    its samples. A con due after ``end_time_s`` (or after the last sample) was not reached.
+    """
+    errors = []
+    t = np.asarray(t, dtype=float)
+    q = np.asarray(q, dtype=float).reshape(-1, NUM_JOINTS)
+    for con, (t_due, X_desired) in enumerate(zip(due_times_s, X_WE_critical), start=1):
+        t_due = float(t_due)
+        if len(t) == 0 or t_due > end_time_s + 1e-9 or t_due > t[-1] + 1e-9:
+            nan6 = np.full(NUM_JOINTS, np.nan)
+            errors.append(CriticalError(con, t_due, math.nan, math.nan, nan6, reached=False))
+            continue
+        t_state = (math.floor(t_due / plant_step_s + 1e-9) + 1) * plant_step_s
+        q_due = np.array([np.interp(t_state, t, q[:, j]) for j in range(NUM_JOINTS)])
+        position, rotation = pose_errors(kinematics.X_WE(q_due), X_desired)
+        errors.append(CriticalError(con, t_due, position, rotation, q_due))
+    return tuple(errors)

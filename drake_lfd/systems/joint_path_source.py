@@ -1,0 +1,132 @@
+"""The compiled closed loop's trajectory source: the plan's joint path, in chunks.
+
+:class:`JointPathSource` takes the planner's plan on its ``plan`` port and the arm's
+measured positions on ``q_measured``. At initialization it latches the arm's positions
+(the run's start, ``q_0``), and the run's feed-forward samples ``w_k`` (one per controller
+period: :func:`~drake_lfd.systems.joint_trajectory_controller.feed_forward_samples` of
+:func:`~drake_lfd.systems.joint_trajectory_controller.joint_path_of_plan`) are a cache
+entry of the plan and ``q_0``, so they live in the Context and are computed once a run.
+Its ``chunk`` output is its discrete state, ``[t_start, q_0, w_k .. w_(k+M-1)]``, written
+at initialization and then once every ``M`` controller periods, at the last instant of a
+chunk, with the next one (a discrete update: the controller's update at the same instant
+still reads the chunk it is in). So no Python runs in the 100 Hz loop, and one Diagram runs many trials in
+many Contexts.
+
+Not for: the tracking law (``joint_trajectory_controller.py``) or planning
+(``planner.py``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import EventStatus, LeafSystem, ValueProducer
+
+from drake_lfd.planning.replanning import ScheduledPlan
+from drake_lfd.robot.differential_ik_law import DifferentialIKLaw
+from drake_lfd.systems.joint_trajectory_controller import (
+    CHUNK_SAMPLES, chunk_size, feed_forward_samples, joint_path_of_plan,
+)
+
+__all__ = ["JointPathSource"]
+
+
+class JointPathSource(LeafSystem):
+    """Puts out the plan's joint path, ``M`` controller instants at a time.
+
+    .. pydrake_system::
+
+        name: JointPathSource
+        input_ports:
+        - plan
+        - q_measured
+        output_ports:
+        - chunk
+
+    ``plan``: an abstract :class:`~drake_lfd.planning.replanning.ScheduledPlan` (the
+    planner system's); ``q_measured``: (6,) joint positions; ``chunk``: see
+    :class:`~drake_lfd.systems.joint_trajectory_controller.JointTrajectoryController`.
+    Without a plan (or with a request) the chunk holds the arm where it started.
+
+    Parameters
+    ----------
+    law : DifferentialIKLaw
+        The controller's law: its period and gain, and following a plan that has no joint
+        path (on the controller plant).
+    lead_s : float
+        The controller's ``lead_s``.
+    chunk_samples : int
+        M, the controller's.
+    """
+
+    def __init__(self, *, law: DifferentialIKLaw, lead_s: float = 0.0, chunk_samples: int = CHUNK_SAMPLES):
+        super().__init__()
+        self._law = law
+        self._time_step = float(law.time_step)
+        self._gain = float(law.position_gain)
+        self._lead_s = float(lead_s)
+        self._samples = int(chunk_samples)
+        n = self._num_joints = 6
+        self.plan_input_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(object()))
+        self.q_measured_input_port = self.DeclareVectorInputPort("q_measured", n)
+        # The run's start: q_0, latched at initialization.
+        self._start_index = self.DeclareDiscreteState(n)
+        self._chunk_index = self.DeclareDiscreteState(chunk_size(n, self._samples))
+        self._path_cache = self.DeclareCacheEntry(
+            "joint_path", ValueProducer(allocate=lambda: AbstractValue.Make(object()), calc=self._calc_path),
+            prerequisites_of_calc={self.input_port_ticket(self.plan_input_port.get_index()),
+                                   self.discrete_state_ticket(self._start_index)})
+        self.chunk_output_port = self.DeclareStateOutputPort("chunk", self._chunk_index)
+        self.DeclareInitializationDiscreteUpdateEvent(self._initialize)
+        # At the last instant of each chunk, the next one: the controller's update at that
+        # instant still reads the chunk it is in (simultaneous discrete updates).
+        self.DeclarePeriodicDiscreteUpdateEvent(self._samples * self._time_step,
+                                                (self._samples - 1) * self._time_step, self._next_chunk)
+
+    @staticmethod
+    def AddToBuilder(*, builder, plan_output_port, q_measured_output_port, law: DifferentialIKLaw,
+                     name: str = "joint_path_source", **kwargs) -> "JointPathSource":
+        """Adds a source named ``name`` fed by the plan and the measured positions
+        (``kwargs``: ``lead_s``, ``chunk_samples``)."""
+        source = builder.AddNamedSystem(name, JointPathSource(law=law, **kwargs))
+        builder.Connect(plan_output_port, source.plan_input_port)
+        builder.Connect(q_measured_output_port, source.q_measured_input_port)
+        return source
+
+    def joint_path(self, root_context) -> tuple[np.ndarray, np.ndarray] | None:
+        """The run's desired joint path in ``root_context``: simulation times (m,) and
+        positions (m, 6), or None without a plan."""
+        context = self.GetMyContextFromRoot(root_context)
+        return self._path_cache.Eval(context)
+
+    def _path_of(self, plan, q_start: np.ndarray):
+        if not isinstance(plan, ScheduledPlan) or not plan.planned:
+            return None
+        return joint_path_of_plan(plan, q_start, self._law)
+
+    def _calc_path(self, context, value):
+        q_start = context.get_discrete_state(self._start_index).value().copy()
+        value.set_value(self._path_of(self.plan_input_port.Eval(context), q_start))
+
+    def _chunk(self, path, q_start: np.ndarray, first: int) -> np.ndarray:
+        """The chunk of instants ``first .. first + M - 1``."""
+        if path is None:  # hold the start: w = dt K q_0
+            t, q = np.zeros(1), q_start[None, :]
+        else:
+            t, q = path
+        w = feed_forward_samples(t, q, self._time_step, self._gain, self._lead_s, first, self._samples)
+        return np.concatenate([[first * self._time_step], q_start, w.ravel()])
+
+    def _initialize(self, context, discrete_state):
+        q_start = np.array(self.q_measured_input_port.Eval(context), dtype=float)
+        first = int(round(context.get_time() / self._time_step))
+        discrete_state.set_value(self._start_index, q_start)
+        path = self._path_of(self.plan_input_port.Eval(context), q_start)
+        discrete_state.set_value(self._chunk_index, self._chunk(path, q_start, first))
+        return EventStatus.Succeeded()
+
+    def _next_chunk(self, context, discrete_state):
+        q_start = context.get_discrete_state(self._start_index).value()
+        first = int(round(context.get_time() / self._time_step)) + 1
+        discrete_state.set_value(self._chunk_index, self._chunk(self._path_cache.Eval(context), q_start, first))
+        return EventStatus.Succeeded()

@@ -1,0 +1,78 @@
+"""Ends a closed-loop run once its plan has been executed (Drake's termination event).
+
+:class:`TrialEnd` watches the plan on its input and, at a coarse period, returns
+``EventStatus.ReachedTermination`` once the simulation time has reached the plan's end
+(the due time of its last critical configuration, the plan in force after any
+replanning), or at once when nothing was planned. So a Simulator may be advanced to any
+``final_time`` at or beyond a trial's end, as Drake's ``MonteCarloSimulation`` does: the
+Diagram stops itself, and the run's Context holds everything its verdict needs.
+
+Not for: judging the run (``diagrams/judging.py``) or measuring it
+(``shell_monitor.py``).
+"""
+
+from __future__ import annotations
+
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import EventStatus, LeafSystem
+
+from drake_lfd.planning.replanning import ScheduledPlan
+
+__all__ = ["TrialEnd", "plan_end_time_s"]
+
+
+def plan_end_time_s(plan: ScheduledPlan | None) -> float | None:
+    """When the run of ``plan`` is over: its last critical configuration's due time
+    (None when nothing is planned)."""
+    if not isinstance(plan, ScheduledPlan) or not plan.planned:
+        return None
+    return float(plan.due_times_s()[-1])
+
+
+class TrialEnd(LeafSystem):
+    """Terminates the simulation once the plan on ``plan`` has been executed.
+
+    .. pydrake_system::
+
+        name: TrialEnd
+        input_ports:
+        - plan
+
+    ``plan``: an abstract :class:`~drake_lfd.planning.replanning.ScheduledPlan` (the
+    planner system's output). A periodic publish every ``period`` s (the only event;
+    nothing in the control loop) ends the run at the first check at or after the plan's
+    end, or at the first check when the input holds no plan.
+
+    Parameters
+    ----------
+    period : float
+        How often the plan's end is checked, s: the run ends at most this much after it.
+    """
+
+    def __init__(self, *, period: float):
+        super().__init__()
+        if not period > 0.0:
+            raise ValueError(f"period must be > 0, got {period!r}")
+        self._period = float(period)
+        self.plan_input_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(object()))
+        self.DeclarePeriodicPublishEvent(period_sec=self._period, offset_sec=0.0, publish=self._check)
+
+    @staticmethod
+    def AddToBuilder(*, builder, plan_output_port, period: float, name: str = "trial_end") -> "TrialEnd":
+        """Adds a TrialEnd named ``name`` watching ``plan_output_port``."""
+        system = builder.AddNamedSystem(name, TrialEnd(period=period))
+        builder.Connect(plan_output_port, system.plan_input_port)
+        return system
+
+    @property
+    def period(self) -> float:
+        return self._period
+
+    def _check(self, context):
+        plan = self.plan_input_port.Eval(context)
+        end = plan_end_time_s(plan)
+        if end is None:
+            return EventStatus.ReachedTermination(self, "nothing planned")
+        if context.get_time() >= end - 1e-9:
+            return EventStatus.ReachedTermination(self, f"plan executed at t = {end:.3f} s")
+        return EventStatus.DidNothing()
