@@ -48,11 +48,11 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
 
 from drake_lfd.core.features import Feature
-from drake_lfd.core.similarity import Tolerances
 from drake_lfd.core.tasks import Box, ConcreteTask
 from drake_lfd.core.timing import TimedPlan
 from drake_lfd.io.simulation_config import COMPILED_METHOD, PipelineConfig
 from drake_lfd.diagrams.station import Station
+from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan
@@ -149,6 +149,10 @@ class Pipeline(Diagram):
     refine : bool
         Refine each executable plan by trajectory optimization (the planner system's
         ``refine``; needs ``joint_check``).
+    planning : PlanningOptions, optional
+        All of the planner's options at once
+        (:class:`~drake_lfd.planning.options.PlanningOptions`); when given, ``planner``,
+        ``joint_check``, ``cost`` and ``refine`` are not used.
 
     Attributes
     ----------
@@ -185,6 +189,7 @@ class Pipeline(Diagram):
         joint_check: bool = True,
         cost: str = "paper",
         refine: bool = False,
+        planning: PlanningOptions | None = None,
     ):
         super().__init__()
         # What it was built from, for a sibling with another controller (``with_controller``).
@@ -192,7 +197,9 @@ class Pipeline(Diagram):
                              safety_shells=safety_shells, tool=tool, with_table=with_table, features=features,
                              planner=planner, policy=policy, plan=plan, config=config, meshcat=meshcat,
                              accept_demonstrations=accept_demonstrations, joint_check=joint_check, cost=cost,
-                             refine=refine)
+                             refine=refine, planning=planning)
+        if planning is None:
+            planning = PlanningOptions(planner=planner, cost=cost, refine=refine, joint_check=joint_check)
         config = (PipelineConfig() if config is None else config).checked()
         self.config = config
         if plan is None and features is None:
@@ -216,17 +223,17 @@ class Pipeline(Diagram):
                 features=features, X_tool0_E=X_tool0_E, accept_demonstrations=accept_demonstrations,
                 check_period=config.planner.check_period))
             self.planner = builder.AddNamedSystem("planner", PlannerSystem(
-                planner=planner, policy=policy, start_time_s=config.settle_s, floor_z=floor_z,
-                checker=joint_path_checker(workcell, config) if joint_check else None,
+                options=planning, policy=policy, start_time_s=config.settle_s, floor_z=floor_z,
+                checker=joint_path_checker(workcell, config) if planning.joint_check else None,
                 # The compiled controller tracks the joint path set before a run (a run
                 # with task changes goes to a task-space sibling, ``with_controller``):
                 # nothing to check for during it.
-                check_period=None if self.compiled else config.planner.check_period, cost=cost, refine=refine))
+                check_period=None if self.compiled else config.planner.check_period))
             plan_port = self.planner.plan_output_port
             # The library prepared for the legal-action table (its stacks, its span index
             # and the index's one-time scipy.spatial import) is built with the Diagram,
             # not in the first trial's plan; every plan of these features reuses it.
-            prepared_library(list(features.values()), Tolerances())
+            prepared_library(list(features.values()), planning.tolerances)
         else:
             constant = builder.AddNamedSystem("given_plan", ConstantValueSource(
                 AbstractValue.Make(scheduled_plan_from_timed(plan, config.settle_s))))
