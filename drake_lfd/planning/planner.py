@@ -46,7 +46,6 @@ from drake_lfd.core.timing import TimedPlan, TimingLimits, time_plan
 
 __all__ = [
     'PLANNERS',
-    'PlanningOptions',
     'ComposedStep',
     'UncoveredSegment',
     'PlanResult',

@@ -50,6 +50,10 @@ class PlannerSystem(LeafSystem):
     abstract :class:`~drake_lfd.planning.replanning.ScheduledPlan` (None before the
     first plan). A task's ``seed`` (when set) seeds the Q-planner's refinement.
 
+    With ``options.refine`` each executable plan is refined by demonstration-guided
+    trajectory optimization (:func:`drake_lfd.planning.refinement.refine_plan`); a plan
+    the refinement cannot improve stands, with the reason in its ``refinement``.
+
     Parameters
     ----------
     options : PlanningOptions
@@ -69,10 +73,6 @@ class PlannerSystem(LeafSystem):
         How often the inputs are compared with the plan's, s; None: only at
         initialization (a Diagram whose plan cannot change during a run, such as the
         compiled closed loop's, then pays no periodic Python event).
-
-    With ``options.refine`` each executable plan is refined by demonstration-guided
-    trajectory optimization (:func:`drake_lfd.planning.refinement.refine_plan`); a plan
-    the refinement cannot improve stands, with the reason in its ``refinement``.
     """
 
     def __init__(
