@@ -39,6 +39,7 @@ from drake_lfd.experiments.pick_and_place import write_pick_and_place_tasks
 from drake_lfd.experiments.simulation import TrialRunner
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
+from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.robot.kinematics import UR5eKinematics
 
 JOINT_SPEED_RAD_S = math.pi
@@ -79,7 +80,7 @@ def optimal_duration(q: np.ndarray, kinematics: UR5eKinematics) -> float:
 
 
 def measure(task, features, seed: int) -> dict | None:
-    runner = TrialRunner(task, features)
+    runner = TrialRunner(task, features, options=PlanningOptions(cost="paper"))
     outcome = runner.run(trial=1, seed=seed)
     run = outcome.run
     if run is None:

@@ -29,6 +29,7 @@ from drake_lfd.experiments.pick_and_place import write_pick_and_place_tasks
 from drake_lfd.experiments.simulation import TrialRunner
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
+from drake_lfd.planning.options import PlanningOptions
 
 
 def main() -> None:
@@ -49,7 +50,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as directory:
         for path in write_pick_and_place_tasks(Path(directory), args.tasks, args.seed):
             task = load_task(path)
-            runner = TrialRunner(task, features, joint_check=not args.no_joint_check)
+            runner = TrialRunner(task, features,
+                                 options=PlanningOptions(cost="paper", joint_check=not args.no_joint_check))
             outcome = runner.run(trial=1, seed=0)
             plan = outcome.plan
             if plan is None or not plan.planned:

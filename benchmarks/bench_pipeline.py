@@ -49,6 +49,7 @@ from drake_lfd.diagrams.station import build_station
 from drake_lfd.experiments.simulation import TrialRunner
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
+from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.robot.scene import table_under_robot
 from drake_lfd.systems.joint_trajectory_controller import joint_spline
 
@@ -105,7 +106,7 @@ def main() -> None:
     if args.monitor_period is not None:
         config = dataclasses.replace(config, monitor=dataclasses.replace(config.monitor, period=args.monitor_period))
     build_start, build_cpu_start = time.perf_counter(), time.process_time()
-    runner = TrialRunner(task, features, config=config)
+    runner = TrialRunner(task, features, config=config, options=PlanningOptions(cost="paper"))
     build = (time.perf_counter() - build_start, time.process_time() - build_cpu_start)
     walls = {"planning": [0.0, 0.0], "judging": [0.0, 0.0]}  # [wall, CPU]
 

@@ -61,7 +61,8 @@ from drake_lfd.diagrams.judging import judge_run
 from drake_lfd.experiments.pick_and_place import write_pick_and_place_tasks
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
-from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import plan_composition
 from drake_lfd.planning.refinement import (
     OptimizationScene,
     RefinementOptions,
@@ -105,12 +106,13 @@ def _executed_tube_deviation(composed, result, run, times, poses) -> tuple[float
 
 def _compose(task, features, seed: int, cost: str):
     """As ``drake-lfd plan`` does: the trial of ``seed``, its work cell, the plan-time
-    checker, the composed plan and the time ``plan_task`` took."""
+    checker, the composed plan and the time ``plan_composition`` took."""
     concrete = draw_trial(task, seed)
     workcell = Workcell.of(concrete)
     checker = joint_path_checker(workcell, task.simulation)
     start = time.perf_counter()
-    composed = plan_task(concrete, features, seed=seed, floor_z=workcell.planner_floor, checker=checker, cost=cost)
+    composed = plan_composition(concrete, features, PlanningOptions(cost=cost), seed=seed,
+                                floor_z=workcell.planner_floor, checker=checker)
     return concrete, workcell, checker, composed, time.perf_counter() - start
 
 

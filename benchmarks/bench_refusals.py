@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 import drake_lfd.planning.planner as planner_module
+from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.core.tasks import draw_trial
 from drake_lfd.diagrams.pipeline import joint_path_checker
 from drake_lfd.experiments.pick_and_place import pick_and_place_yaml
@@ -71,8 +72,8 @@ def plan_once(text: str, features, before: bool):
         start = time.perf_counter()
         workcell = Workcell.of(trial)
         checker = joint_path_checker(workcell, task.simulation)
-        result = planner_module.plan_task(trial, features, floor_z=workcell.planner_floor, checker=checker,
-                                          cost="fidelity")
+        result = planner_module.plan_composition(trial, features, PlanningOptions(),
+                                                 floor_z=workcell.planner_floor, checker=checker)
         return result, time.perf_counter() - start
     finally:
         planner_module.blocked_configurations, planner_module.distinct_reasons = saved

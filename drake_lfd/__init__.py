@@ -48,7 +48,8 @@ Conventions: metres, radians, seconds; quaternions (w, x, y, z); task orientatio
 
 The main entry points are importable from the package itself (loaded on first use, so
 ``import drake_lfd`` stays cheap): :func:`load_task`, :class:`Library`,
-:func:`library_features`, :func:`plan_task`, :func:`build_station`,
+:func:`library_features`, :func:`plan_task` (with :class:`PlanningOptions`; it plans as
+``drake-lfd plan`` does), :func:`build_station`,
 :func:`build_pipeline`, :class:`ClosedLoopRunner`, :func:`run_trials`.
 """
 
@@ -64,7 +65,8 @@ _ENTRY_POINTS = {
     "draw_trial": "drake_lfd.core.tasks",
     "Library": "drake_lfd.io.library",
     "library_features": "drake_lfd.io.library",
-    "plan_task": "drake_lfd.planning.planner",
+    "plan_task": "drake_lfd.experiments.planning_api",
+    "PlanningOptions": "drake_lfd.planning.options",
     "PlanResult": "drake_lfd.planning.planner",
     "build_station": "drake_lfd.diagrams.station",
     "Station": "drake_lfd.diagrams.station",

@@ -22,6 +22,7 @@ from drake_lfd.experiments.simulation import (
     trial_summary_line,
 )
 from drake_lfd.io.library import bundled_library_names
+from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.q_learning import episodes_to_steady, never_steady
 
 # The transferring scene (paper5's tool frame and base) with two path constraints the
@@ -185,8 +186,9 @@ def test_paper_creates_its_folder_before_any_work(tmp_path, monkeypatch, capsys)
 
     seen = {}
 
-    def fake_run_paper(out, *, trials, seed, log):
+    def fake_run_paper(out, *, trials, seed, log, options):
         seen["out_is_dir"] = out.is_dir()
+        seen["options"] = options
         task = {"success_count": trials}
         return {"tasks": {"transferring": task, "filling_pouring": task,
                           "assembling": {"initial_status": "demonstration_requested", "after_new_demo": task}},
@@ -195,7 +197,8 @@ def test_paper_creates_its_folder_before_any_work(tmp_path, monkeypatch, capsys)
     monkeypatch.setattr(paper, "run_paper", fake_run_paper)
     out = tmp_path / "runs" / "paper"
     assert cli.main(["paper", "--out", str(out), "--trials", "1"]) == 0
-    assert seen == {"out_is_dir": True}
+    assert seen == {"out_is_dir": True, "options": paper.PAPER_OPTIONS}
+    assert paper.PAPER_OPTIONS == PlanningOptions(planner="q", cost="paper", joint_check=True, refine=False)
     blocker = tmp_path / "a_file"
     blocker.write_text("x")
     assert cli.main(["paper", "--out", str(blocker / "paper")]) == 2

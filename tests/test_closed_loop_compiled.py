@@ -15,6 +15,7 @@ from drake_lfd.experiments.simulation import TrialRunner
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.io.task_files import load_task
+from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.systems.joint_path_source import JointPathSource
 from drake_lfd.systems.joint_trajectory_controller import (
@@ -77,7 +78,7 @@ def test_compiled_tracking_is_at_least_as_good_as_the_python_controller():
 
 def _records(task, features, trials, **monitor):
     config = dataclasses.replace(task.simulation, monitor=dataclasses.replace(task.simulation.monitor, **monitor))
-    runner = TrialRunner(task, features, config=config)
+    runner = TrialRunner(task, features, config=config, options=PlanningOptions(cost="paper"))
     assert runner._runner.pipeline.monitor.measures_log == monitor["from_log"]
     records = []
     for i in range(trials):

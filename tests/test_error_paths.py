@@ -240,10 +240,10 @@ def test_an_interrupt_during_start_up_is_one_line(signum):
 
 INTERNAL_ERROR = """
 import sys
-import drake_lfd.planning.planner as planner
+import drake_lfd.experiments.planning_api as planning_api
 def broken(*args, **kwargs):
     raise RuntimeError("a bug\\nover two lines")
-planner.plan_task = broken
+planning_api.plan_task = broken
 from drake_lfd.cli import main
 sys.exit(main(sys.argv[1:]))
 """

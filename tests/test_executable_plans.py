@@ -14,7 +14,12 @@ from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.core.tasks import ConcreteCriticalConfiguration, draw_trial
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
-from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import plan_composition
+
+# The paper's cost, without and with the joint-space check (what these tests were written for).
+UNCHECKED = PlanningOptions.paper_baseline()
+CHECKED = PlanningOptions(cost="paper")
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.scene import KinematicScene, table_under_robot
 
@@ -50,12 +55,12 @@ def test_a_blocked_plan_is_replaced_by_an_executable_one(transferring, paper5, c
     failing that, forbids it and takes another composition), and the plan it returns
     keeps every margin."""
     concrete = draw_trial(transferring, seed)
-    unchecked = plan_task(concrete, paper5, floor_z=_floor(transferring))
+    unchecked = plan_composition(concrete, paper5, UNCHECKED, floor_z=_floor(transferring))
     starts = checker.start_candidates(unchecked.timed.X_WE_list()[0])
     blocked = checker.follow_from_candidates(unchecked.timed, starts)
     assert blocked.blocker is not None and blocked.blocker.reason == "singularity"
     assert "elbow" in blocked.blocker.detail or "speed limit" in blocked.blocker.detail
-    checked = plan_task(concrete, paper5, floor_z=_floor(transferring), checker=checker)
+    checked = plan_composition(concrete, paper5, CHECKED, floor_z=_floor(transferring), checker=checker)
     assert checked.planned and checked.joint_path is not None and checked.joint_path.executable
     assert checked.timed.poses.shape != unchecked.timed.poses.shape or \
         not np.allclose(checked.timed.poses, unchecked.timed.poses)
@@ -76,7 +81,7 @@ def test_a_step_no_mapping_can_run_is_forbidden_and_reported(transferring, paper
     saved = planner.SUFFIX_ALTERNATIVES, planner.TWIST_ALTERNATIVES
     planner.SUFFIX_ALTERNATIVES, planner.TWIST_ALTERNATIVES = 1, 1
     try:
-        checked = plan_task(concrete, paper5, floor_z=_floor(transferring), checker=checker)
+        checked = plan_composition(concrete, paper5, CHECKED, floor_z=_floor(transferring), checker=checker)
     finally:
         planner.SUFFIX_ALTERNATIVES, planner.TWIST_ALTERNATIVES = saved
     assert checked.planned and checked.joint_path.executable
@@ -86,8 +91,8 @@ def test_a_step_no_mapping_can_run_is_forbidden_and_reported(transferring, paper
 
 def test_an_executable_plan_is_found_in_one_round_when_the_best_runs(transferring, paper5, checker):
     concrete = draw_trial(transferring, 0)
-    unchecked = plan_task(concrete, paper5, floor_z=_floor(transferring))
-    checked = plan_task(concrete, paper5, floor_z=_floor(transferring), checker=checker)
+    unchecked = plan_composition(concrete, paper5, UNCHECKED, floor_z=_floor(transferring))
+    checked = plan_composition(concrete, paper5, CHECKED, floor_z=_floor(transferring), checker=checker)
     assert checked.search_rounds == 1 and not checked.infeasible
     assert [s.demo for s in checked.composition] == [s.demo for s in unchecked.composition]
     # Same critical configurations; the checked plan is timed along its joint path.
@@ -107,7 +112,7 @@ def test_a_configuration_out_of_reach_is_refused_fast_naming_it(transferring, pa
     cons[2] = ConcreteCriticalConfiguration.fixed([distance, 0.2, 0.3], [0.0, -np.pi / 2, 0.0])
     far = dataclasses.replace(concrete, critical_configurations=tuple(cons))
     start = time.perf_counter()
-    result = plan_task(far, paper5, floor_z=_floor(transferring), checker=checker)
+    result = plan_composition(far, paper5, CHECKED, floor_z=_floor(transferring), checker=checker)
     assert time.perf_counter() - start < 2.0
     assert result.status == "no_executable_plan" and result.timed is None
     (segment,) = result.infeasible
@@ -126,7 +131,7 @@ def test_the_planned_joint_path_is_the_path_the_closed_loop_runs(transferring, p
     from drake_lfd.io.plan_json import plan_json
     from drake_lfd.robot.kinematics import UR5eKinematics
 
-    runner = TrialRunner(transferring, paper5)
+    runner = TrialRunner(transferring, paper5, options=CHECKED)
     outcome = runner.run(trial=1, seed=0)
     assert outcome.success, outcome.failures
     document = plan_json(outcome.plan)
@@ -246,8 +251,8 @@ def test_a_rigid_motion_of_the_whole_problem_keeps_the_plan(transferring, paper5
     results = []
     for task in (concrete, moved):
         workcell = Workcell.of(task)
-        results.append(plan_task(task, paper5, floor_z=workcell.planner_floor, cost=cost,
-                                 checker=joint_path_checker(workcell)))
+        results.append(plan_composition(task, paper5, PlanningOptions(cost=cost), floor_z=workcell.planner_floor,
+                                        checker=joint_path_checker(workcell)))
     original, rigid = results
     assert original.planned and rigid.planned
     assert [(s.demo, s.con_from, s.con_to) for s in original.composition] == \

@@ -26,7 +26,8 @@ from drake_lfd.experiments.fidelity_tasks import evaluate, fidelity_task, path_d
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
 from drake_lfd.planning.composition import CompositionProblem
-from drake_lfd.planning.planner import build_problem, plan_task, task_candidates
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import build_problem, plan_composition, task_candidates
 
 PI = np.pi
 START = np.array([-0.3, -0.3, 0.3])
@@ -51,7 +52,7 @@ def off_line_m(result):
 
 def chosen_mapping(task, features, cost):
     """The demo, allocation and MappedSegment of a one-span plan (no obstacles: twist 0)."""
-    result = plan_task(task, features, cost=cost)
+    result = plan_composition(task, features, PlanningOptions(cost=cost, joint_check=False))
     (step,) = result.composition
     problem = build_problem(task, features, cost=cost)
     names = list(features)
@@ -189,7 +190,7 @@ def test_the_64_cm_carry_is_no_longer_the_stretched_lift_over_lower(paper5):
 ])
 def test_other_carries_take_the_straight_descent(paper5, direction, euler_zyx):
     task = carry(direction, euler_zyx)
-    paper = plan_task(task, paper5, cost="paper")
+    paper = plan_composition(task, paper5, PlanningOptions.paper_baseline())
     fidelity, demo, allocation, mapped = chosen_mapping(task, paper5, "fidelity")
     assert off_line_m(paper) > 0.5
     assert demo == "stacking" and allocation.indices[0] >= 75 and mapped.scale > 6
@@ -226,8 +227,8 @@ def test_paper_cost_reproduces_the_transferring_composition(paper5):
 
     trial = draw_trial(load_task(scenarios_directory() / "transferring.yaml"), 0)
     workcell = Workcell.of(trial)
-    result = plan_task(trial, paper5, cost="paper", floor_z=workcell.planner_floor,
-                       checker=joint_path_checker(workcell))
+    result = plan_composition(trial, paper5, PlanningOptions(cost="paper"), floor_z=workcell.planner_floor,
+                              checker=joint_path_checker(workcell))
     assert result.planned
     assert [(s.demo, s.con_from, s.con_to) for s in result.composition] == [
         ("stacking", 1, 2), ("stacking", 2, 3), ("stacking", 3, 4)]
@@ -249,7 +250,7 @@ def test_a_rigid_motion_of_the_whole_problem_keeps_the_fidelity_plan(paper5):
                                                                          rpy.roll_angle()])
 
         rigid = dataclasses.replace(task, critical_configurations=tuple(map(moved, task.critical_configurations)))
-        original, moved_plan = (plan_task(t, paper5, cost="fidelity") for t in (task, rigid))
+        original, moved_plan = (plan_composition(t, paper5, PlanningOptions(joint_check=False)) for t in (task, rigid))
         assert [(s.demo, s.con_from, s.con_to) for s in original.composition] == \
             [(s.demo, s.con_from, s.con_to) for s in moved_plan.composition]
         np.testing.assert_allclose([s.cost for s in original.composition],

@@ -15,7 +15,8 @@ from drake_lfd.core.timing import TimingLimits
 from drake_lfd.diagrams.pipeline import joint_path_checker
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
-from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import plan_composition
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.robot.path_timing import corner_samples, time_joint_path
@@ -96,9 +97,10 @@ def paper_plans():
     return plans
 
 
-def _plan(entry, **kwargs):
+def _plan(entry, **options):
     name, concrete, checker, features, workcell = entry
-    result = plan_task(concrete, features, floor_z=workcell.planner_floor, checker=checker, **kwargs)
+    result = plan_composition(concrete, features, PlanningOptions(cost="paper", **options),
+                              floor_z=workcell.planner_floor, checker=checker)
     assert result.planned and result.timing == "time_optimal", name
     return result
 
@@ -141,7 +143,8 @@ def test_stop_flags_of_a_task_reach_the_plan(paper_plans):
     cons = list(concrete.critical_configurations)
     cons[3] = dataclasses.replace(cons[3], stop=True)
     stopping = dataclasses.replace(concrete, critical_configurations=tuple(cons))
-    result = plan_task(stopping, features, floor_z=workcell.planner_floor, checker=checker)
+    result = plan_composition(stopping, features, PlanningOptions(cost="paper"), floor_z=workcell.planner_floor,
+                              checker=checker)
     v = _commanded_tool_velocity(result)
     due = result.timed.times[result.timed.critical_indices[3]]
     k = int(round(due / PERIOD))

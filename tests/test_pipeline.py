@@ -11,6 +11,7 @@ from pydrake.systems.primitives import ConstantValueSource, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 from pydrake.common.value import AbstractValue
 
+from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.core.tasks import draw_trial
 from drake_lfd.diagrams.closed_loop import ClosedLoopRunner
@@ -19,6 +20,7 @@ from drake_lfd.diagrams.judging import judge_run
 from drake_lfd.io.demonstration_logs import read_rtde_csv
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
+from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.systems.demo_recorder import DemoRecorder
 from drake_lfd.systems.feature_library import FeatureLibrarySystem, LibraryFeatures
 from drake_lfd.systems.planner import PlannerSystem
@@ -84,7 +86,7 @@ def test_replans_from_the_current_pose_when_the_configuration_ahead_moves(transf
 def test_planner_system_plans_and_replans_on_a_changed_task():
     task = load_task(SIMS / "transferring.yaml")
     features = library_features(Library.open("paper5"))
-    dut = PlannerSystem(planner="exact", start_time_s=0.5)
+    dut = PlannerSystem(options=PlanningOptions(cost="paper"), start_time_s=0.5)
     context = dut.CreateDefaultContext()
     concrete = draw_trial(task, 0)
     dut.task_input_port.FixValue(context, concrete)
@@ -119,7 +121,8 @@ def test_record_library_plan_in_one_diagram():
         demonstration_output_port=recorder.demonstration_output_port, check_period=0.1)
     task_source = builder.AddSystem(ConstantValueSource(AbstractValue.Make(concrete)))
     planner = PlannerSystem.AddToBuilder(builder=builder, library_output_port=library_system.library_output_port,
-                                         task_output_port=task_source.get_output_port(), check_period=0.1)
+                                         task_output_port=task_source.get_output_port(), check_period=0.1,
+                                         options=PlanningOptions(cost="paper"))
     diagram = builder.Build()
     simulator = Simulator(diagram)
     simulator.Initialize()
@@ -135,7 +138,7 @@ def test_record_library_plan_in_one_diagram():
 
 def test_planner_system_replans_for_another_library_of_the_same_revision():
     task = load_task(SIMS / "assembling.yaml")
-    dut = PlannerSystem(planner="exact")
+    dut = PlannerSystem(options=PlanningOptions(cost="paper"))
     context = dut.CreateDefaultContext()
     dut.task_input_port.FixValue(context, draw_trial(task, 0))
     dut.library_input_port.FixValue(context, LibraryFeatures(library_features(Library.open("paper5"))))
@@ -160,7 +163,7 @@ def test_the_library_is_prepared_when_the_pipeline_is_built_not_in_the_first_pla
         original(self, *args, **kwargs)
 
     monkeypatch.setattr(span_index.PreparedLibrary, "__init__", counting)
-    runner = ClosedLoopRunner(build_pipeline(task, features, joint_check=False))
+    runner = ClosedLoopRunner(build_pipeline(task, features, planning=PlanningOptions(joint_check=False)))
     assert len(built) == 1
     scheduled = runner.plan(draw_trial(task, 0))
     assert scheduled.result.planned

@@ -14,13 +14,17 @@ from drake_lfd.core.tasks import Box, draw_trial
 from drake_lfd.core.timing import time_plan
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
-from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import plan_composition
 from drake_lfd.robot import path_timing
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene, table_under_robot
 
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -math.pi / 2, 0.0])
+
+# The paper's cost with the joint-space check: the plans these tests were written for.
+PAPER_CHECKED = PlanningOptions(cost="paper")
 
 
 def _plan_through(q_samples, critical):
@@ -177,9 +181,11 @@ def test_a_trials_plan_does_not_depend_on_the_trials_planned_before_it():
             checker, floor = _checker_and_floor(task)
             for seed in order:
                 plans.setdefault(seed, []).append(
-                    _fingerprint(plan_task(draw_trial(task, seed), features, floor_z=floor, checker=checker)))
+                    _fingerprint(plan_composition(draw_trial(task, seed), features, PAPER_CHECKED, floor_z=floor,
+                                                   checker=checker)))
         for seed in seeds:
             path_timing._PIECES.clear()
             checker, floor = _checker_and_floor(task)
-            fresh = _fingerprint(plan_task(draw_trial(task, seed), features, floor_z=floor, checker=checker))
+            fresh = _fingerprint(plan_composition(draw_trial(task, seed), features, PAPER_CHECKED, floor_z=floor,
+                                                   checker=checker))
             assert plans[seed] == [fresh, fresh], (name, seed)

@@ -15,11 +15,15 @@ from drake_lfd.core.dual_quaternion import (
     translation_rotation_from_dual_quaternion,
 )
 from drake_lfd.planning.exact_planner import plan_exact
+from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.q_learning import QPolicy, greedy_walk, plan_q
 from drake_lfd.planning.random_tasks import _euler_zyx_of, chained_task, random_training_task
 from drake_lfd.core.similarity import rotation_distance
 from drake_lfd.core.synthetic_library import PAPER5, PAPER6, synthetic_features
 from drake_lfd.core.tasks import ConcreteCriticalConfiguration, ConcreteTask
+
+# The paper's planning (Eq. 31, no joint-space check), which these tests check.
+PAPER = PlanningOptions.paper_baseline()
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +58,7 @@ START = dual_quaternion_from_euler_zyx([0.5, -0.1, 0.3], [0.3, 0.2, 2.8])
 
 def test_chain_of_two_demonstrations_is_planned_as_that_chain(paper5):
     task = task_from_poses(chain(paper5, ["screw_cw", "filling"], START))
-    result = mut.plan_task(task, paper5)
+    result = mut.plan_composition(task, paper5, PAPER)
     assert result.planned
     assert [(s.demo, s.con_from, s.con_to) for s in result.composition] == [
         ("screw_cw", 1, 2), ("filling", 2, 3)]
@@ -64,7 +68,7 @@ def test_chain_of_two_demonstrations_is_planned_as_that_chain(paper5):
 def test_plan_passes_exactly_through_every_critical_configuration(paper5):
     rng = np.random.default_rng(3)
     task, _ = chained_task(rng, paper5, num_cons=5)
-    result = mut.plan_task(task, paper5)
+    result = mut.plan_composition(task, paper5, PAPER)
     assert result.planned
     _, task_poses = mut.task_candidates(task)
     for con, index in enumerate(result.timed.critical_indices):
@@ -82,7 +86,7 @@ def test_rigid_motion_of_the_task_keeps_composition_and_cost(paper5):
         X = dual_quaternion_from_translation_rotation(
             rng.uniform(-1, 1, 3), quaternion_from_axis_angle(rng.normal(size=3), 2.0))
         moved = task_from_poses(dual_quaternion_multiply(X, np.array([c[0] for c in poses])))
-        a, b = mut.plan_task(task, paper5), mut.plan_task(moved, paper5)
+        a, b = mut.plan_composition(task, paper5, PAPER), mut.plan_composition(moved, paper5, PAPER)
         assert [(s.demo, s.con_from, s.con_to) for s in a.composition] == \
             [(s.demo, s.con_from, s.con_to) for s in b.composition]
         assert a.total_cost == pytest.approx(b.total_cost, abs=1e-6)
@@ -90,9 +94,9 @@ def test_rigid_motion_of_the_task_keeps_composition_and_cost(paper5):
 
 def test_removing_a_needed_demonstration_requests_the_right_segment(paper5):
     task = task_from_poses(chain(paper5, ["stacking", "screw_cw", "filling"], START))
-    assert mut.plan_task(task, paper5).planned
+    assert mut.plan_composition(task, paper5, PAPER).planned
     without = {k: v for k, v in paper5.items() if k != "screw_cw"}
-    result = mut.plan_task(task, without)
+    result = mut.plan_composition(task, without, PAPER)
     assert result.status == "demonstration_requested"
     assert [(u.con_from, u.con_to) for u in result.uncovered] == [(2, 3)]
     (u,) = result.uncovered
@@ -106,13 +110,13 @@ def test_assembling_like_segment_asks_for_a_quarter_turn_about_body_x(paper5, pa
     task = ConcreteTask.from_fixed(
         "assembling", [[0, 0.5, 0.6], [0.1, 0.5, 0.6], [0.5, 0.1, 0.6], [0.5, 0, 0.6]],
         [[-pi / 2, 0, pi / 2], [0, -pi / 2, 0], [0, -pi / 2, pi / 2], [pi, 0, -pi / 2]])
-    result = mut.plan_task(task, paper5)
+    result = mut.plan_composition(task, paper5, PAPER)
     assert result.status == "demonstration_requested"
     assert [(u.con_from, u.con_to) for u in result.uncovered] == [(2, 3)]
     (u,) = result.uncovered
     np.testing.assert_allclose(np.abs(u.axis), [1, 0, 0], atol=1e-9)
     assert np.degrees(u.angle_rad) == pytest.approx(90)
-    with_span = mut.plan_task(task, paper6)
+    with_span = mut.plan_composition(task, paper6, PAPER)
     assert with_span.planned
     assert ("span", 2, 3) in [(s.demo, s.con_from, s.con_to) for s in with_span.composition]
 
@@ -173,7 +177,7 @@ def test_q_planner_plans_exactly_what_the_exact_planner_plans(paper5):
 def test_timing_law_respects_speed_limits_and_stops_at_each_con(paper5):
     rng = np.random.default_rng(2)
     task, _ = chained_task(rng, paper5)
-    timed = mut.plan_task(task, paper5, max_speed_m_s=0.2, max_angular_speed_rad_s=0.8).timed
+    timed = mut.plan_composition(task, paper5, PAPER.replace(max_speed_m_s=0.2, max_angular_speed_rad_s=0.8)).timed
     p = translation_from_dual_quaternion(timed.poses)
     dt = np.diff(timed.times)
     assert np.all(dt > 0)

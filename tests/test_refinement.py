@@ -20,7 +20,8 @@ from drake_lfd.experiments.simulation import run_trial
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.plan_json import plan_json
 from drake_lfd.io.task_files import load_task
-from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import plan_composition
 from drake_lfd.core.timing import TimingLimits
 from drake_lfd.planning.refinement import (
     OptimizationScene,
@@ -44,8 +45,8 @@ def _composed(name: str, seed: int):
     trial = draw_trial(task, seed)
     workcell = Workcell.of(trial)
     checker = joint_path_checker(workcell, task.simulation)
-    result = plan_task(trial, library_features(Library.open("paper5")), floor_z=workcell.planner_floor,
-                       checker=checker, cost="fidelity")
+    result = plan_composition(trial, library_features(Library.open("paper5")), PlanningOptions(),
+                              floor_z=workcell.planner_floor, checker=checker)
     assert result.planned and result.joint_path.executable
     return result, checker, OptimizationScene(workcell)
 
@@ -132,8 +133,8 @@ def test_the_refinement_is_the_same_bits_whatever_ran_before_it(transferring, re
     scene, gives the identical plan and report (all but the wall times)."""
     composed, checker, scene = transferring
     trial = draw_trial(load_task(SIMS / "transferring.yaml"), 3)
-    other = plan_task(trial, library_features(Library.open("paper5")), floor_z=Workcell.of(trial).planner_floor,
-                      checker=checker, cost="fidelity")
+    other = plan_composition(trial, library_features(Library.open("paper5")), PlanningOptions(),
+                             floor_z=Workcell.of(trial).planner_floor, checker=checker)
     assert not np.array_equal(other.timed.poses[-1], composed.timed.poses[-1]) or len(other.timed.times) != len(
         composed.timed.times)
     refine_plan(other, checker, scene=scene)
@@ -304,8 +305,8 @@ def test_the_tube_is_sampled_evenly_in_s_and_along_the_arc_length(transferring):
     ("transferring", "paper5"), ("filling_pouring", "paper5"), ("assembling", "paper6")])
 def test_one_refined_closed_loop_trial_per_paper_task_succeeds(name, library):
     task = load_task(SIMS / f"{name}.yaml")
-    outcome = run_trial(task, library_features(Library.open(library)), trial=1, seed=0, cost="fidelity",
-                        refine=True)
+    outcome = run_trial(task, library_features(Library.open(library)), trial=1, seed=0,
+                        options=PlanningOptions(refine=True))
     assert outcome.plan.refinement is not None
     assert outcome.plan.refinement.status == "refined", outcome.plan.refinement.reason
     assert outcome.success, outcome.failures

@@ -15,7 +15,8 @@ from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import task_from_spec, task_spec_from_text
 from drake_lfd.planning import refusals as mut
 from drake_lfd.planning.executable import InfeasibleSegment
-from drake_lfd.planning.planner import build_problem, plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import build_problem, plan_composition
 from drake_lfd.robot.workcell import Workcell
 
 DATA = Path(__file__).parent / "data"
@@ -33,7 +34,7 @@ def plan_shelf(x, y):
     workcell = Workcell.of(trial)
     checker = joint_path_checker(workcell, task.simulation)
     features = library_features(Library.open("paper5"))
-    result = plan_task(trial, features, floor_z=workcell.planner_floor, checker=checker, cost="fidelity")
+    result = plan_composition(trial, features, PlanningOptions(), floor_z=workcell.planner_floor, checker=checker)
     return result, trial, checker, features
 
 

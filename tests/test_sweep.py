@@ -21,6 +21,7 @@ from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.experiments.parallel_trials import trial_cluster
 from drake_lfd.experiments.sweep import failure_kind, parse_axis, row_key
 from drake_lfd.io.json_lines import read_json_lines
+from drake_lfd.planning.options import PlanningOptions
 
 TRANSFERRING = scenarios_directory() / "transferring.yaml"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -240,7 +241,7 @@ def test_runners_of_one_library_share_its_features_loaded_once():
         other = runner_spec(TRANSFERRING, paper6).build()
         assert other.features is not first.features and set(other.features) == set(paper6.names)
         assert len(parallel_trials._FEATURES) == parallel_trials.FEATURE_SETS_PER_PROCESS == 2
-        runner_spec(TRANSFERRING, paper5, cost="fidelity").build()  # paper5 is the most recent again
+        runner_spec(TRANSFERRING, paper5, options=PlanningOptions(cost="paper")).build()  # paper5 is the most recent again
         fresh = runner_spec(TRANSFERRING, Library.open("paper5")).build()
         assert fresh.features is first.features
     finally:

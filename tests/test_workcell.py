@@ -42,7 +42,7 @@ def test_plan_json_is_the_plan_the_pipeline_runs(scenario, tmp_path):
                  "--json", str(out)]) == 0
     document = json.loads(out.read_text())
     task = load_task(SIMS / f"{scenario}.yaml")
-    runner = TrialRunner(task, library_features(Library.open("paper5")), cost="fidelity")  # plan's default
+    runner = TrialRunner(task, library_features(Library.open("paper5")))  # plans as drake-lfd plan does
     scheduled = runner._runner.plan(draw_trial(task, 2))
     X = scheduled.result.timed.X_WE_list()
     assert len(document["poses"]) == len(X)

@@ -51,7 +51,8 @@ from drake_lfd.experiments.notebooks import parse_tutorial_arguments, show
 from drake_lfd.experiments.simulation import composition_counts, run_trials, simulate_json, trial_summary_line
 from drake_lfd.io.library import Library, check_end_effector_frame, library_features
 from drake_lfd.io.task_files import load_task
-from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import plan_composition
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.robot.scene import table_under_robot
 
@@ -128,7 +129,9 @@ print(f"library {library.label}: {', '.join(library.names)}")
 concrete = draw_trial(task, args.seed)
 table = table_under_robot(task.X_WB)
 floor_z = float(table.centre[2] + table.size[2] / 2)
-result = plan_task(concrete, features, planner="exact", seed=args.seed, floor_z=floor_z)
+# The paper's planning: Eq. 31's cost, in SE(3) alone (no joint-space check).
+paper = PlanningOptions.paper_baseline(planner="exact")
+result = plan_composition(concrete, features, paper, seed=args.seed, floor_z=floor_z)
 print(f"trial seed {args.seed}: z = {concrete.variable_values['z']:.3f} m -> {result.status}")
 if not result.planned:
     raise SystemExit("the transferring task should plan with paper5; see the request above")
@@ -173,7 +176,7 @@ def progress(done, total, outcome):
 
 
 print(f"running {num_trials} closed-loop trial(s) ...")
-outcomes, wall = run_trials(task, features, trials=num_trials, seed=args.seed,
+outcomes, wall = run_trials(task, features, trials=num_trials, seed=args.seed, options=PlanningOptions(cost="paper"),
                             record_html=recording, progress=progress)
 successes = sum(o.success for o in outcomes)
 print(f"{successes}/{num_trials} trials succeeded in {wall:.1f} s; compositions {composition_counts(outcomes)}")

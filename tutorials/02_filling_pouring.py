@@ -45,7 +45,8 @@ from drake_lfd.experiments.simulation import composition_counts, run_trials, sim
 from drake_lfd.io.library import Library, check_end_effector_frame, library_features
 from drake_lfd.io.policy_files import save_policy
 from drake_lfd.io.task_files import load_task
-from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import plan_composition
 from drake_lfd.planning.q_learning import episodes_to_steady
 from drake_lfd.planning.training import train_on_random_tasks
 from drake_lfd.robot.kinematics import UR5eKinematics
@@ -109,7 +110,9 @@ print(f"library {library.label}: {', '.join(library.names)}")
 concrete = draw_trial(task, args.seed)
 table = table_under_robot(task.X_WB)
 floor_z = float(table.centre[2] + table.size[2] / 2)
-exact = plan_task(concrete, features, planner="exact", seed=args.seed, floor_z=floor_z)
+# The paper's planning: Eq. 31's cost, in SE(3) alone (no joint-space check).
+paper = PlanningOptions.paper_baseline(planner="exact")
+exact = plan_composition(concrete, features, paper, seed=args.seed, floor_z=floor_z)
 print(f"trial seed {args.seed}: cup 2 at x = {concrete.variable_values['x']:.3f}, "
       f"y = {concrete.variable_values['y']:.3f} m -> {exact.status}")
 if not exact.planned:
@@ -165,8 +168,9 @@ show(curve_png)
 comparison = []
 for seed in range(args.seed, args.seed + max(num_trials, 2)):
     trial = draw_trial(task, seed)
-    by_q = plan_task(trial, features, planner="q", policy=training.policy, seed=seed, floor_z=floor_z)
-    by_exact = plan_task(trial, features, planner="exact", seed=seed, floor_z=floor_z)
+    by_q = plan_composition(trial, features, paper.replace(planner="q"), policy=training.policy, seed=seed,
+                            floor_z=floor_z)
+    by_exact = plan_composition(trial, features, paper, seed=seed, floor_z=floor_z)
     label_q = "+".join(s.demo for s in by_q.composition)
     excess = 100.0 * (by_q.total_cost / by_exact.total_cost - 1.0)
     print(f"  seed {seed}: q {label_q} cost {by_q.total_cost:.4f} (greedy completed: "
@@ -193,7 +197,8 @@ def progress(done, total, outcome):
 
 
 print(f"running {num_trials} closed-loop trial(s) with the Q-planner ...")
-outcomes, wall = run_trials(task, features, trials=num_trials, seed=args.seed, planner="q",
+outcomes, wall = run_trials(task, features, trials=num_trials, seed=args.seed,
+                            options=PlanningOptions(planner="q", cost="paper"),
                             policy=training.policy, record_html=recording, progress=progress)
 successes = sum(o.success for o in outcomes)
 print(f"{successes}/{num_trials} trials succeeded in {wall:.1f} s; compositions {composition_counts(outcomes)}")

@@ -49,7 +49,8 @@ from drake_lfd.io.library import Library, check_end_effector_frame, library_feat
 from drake_lfd.io.plan_json import describe_uncovered, plan_json
 from drake_lfd.io.policy_files import save_policy
 from drake_lfd.io.task_files import load_task
-from drake_lfd.planning.planner import build_problem, plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import build_problem, plan_composition
 from drake_lfd.planning.q_learning import episodes_to_steady
 from drake_lfd.planning.training import train_on_random_tasks
 from drake_lfd.robot.kinematics import UR5eKinematics
@@ -106,7 +107,9 @@ paper5 = Library.open("paper5")
 check_end_effector_frame(paper5, task.X_tool0_E, file=task.file)
 features5 = library_features(paper5)
 print(f"task {task.name}: {task.description}")
-request = plan_task(concrete, features5, planner="exact", floor_z=floor_z)
+# The paper's planning: Eq. 31's cost, in SE(3) alone (no joint-space check).
+paper = PlanningOptions.paper_baseline(planner="exact")
+request = plan_composition(concrete, features5, paper, floor_z=floor_z)
 print(f"with {paper5.label} ({', '.join(paper5.names)}): {request.status}")
 
 # %% [markdown]
@@ -127,7 +130,8 @@ request_json.write_text(json.dumps(plan_json(request), indent=1) + "\n")
 print(f"wrote {request_json}")
 
 training5 = train_on_random_tasks(features5, num_tasks=num_tasks, episodes=episodes, seed=args.seed)
-by_q5 = plan_task(concrete, features5, planner="q", policy=training5.policy, seed=args.seed, floor_z=floor_z)
+by_q5 = plan_composition(concrete, features5, paper.replace(planner="q"), policy=training5.policy, seed=args.seed,
+                         floor_z=floor_z)
 print(f"the Q-planner with a policy trained on paper5 ({num_tasks} random tasks x {episodes} episodes): "
       f"{by_q5.status}")
 
@@ -183,8 +187,9 @@ show(curve_png)
 # demonstrations take the screw out of hole 1 and fasten it in hole 2.
 
 # %%
-exact6 = plan_task(concrete, features6, planner="exact", floor_z=floor_z)
-by_q6 = plan_task(concrete, features6, planner="q", policy=warm.policy, seed=args.seed, floor_z=floor_z)
+exact6 = plan_composition(concrete, features6, paper, floor_z=floor_z)
+by_q6 = plan_composition(concrete, features6, paper.replace(planner="q"), policy=warm.policy, seed=args.seed,
+                         floor_z=floor_z)
 print(f"with {paper6.label}: exact {exact6.status} {label(exact6)} (cost {exact6.total_cost:.4f}); "
       f"q {by_q6.status} {label(by_q6)} (cost {by_q6.total_cost:.4f}, fallback {by_q6.fallback})")
 if not by_q6.planned:
@@ -214,7 +219,8 @@ def progress(done, total, outcome):
 
 
 print(f"running {num_trials} closed-loop trial(s) with paper6 and the retrained Q-policy ...")
-outcomes, wall = run_trials(task, features6, trials=num_trials, seed=args.seed, planner="q",
+outcomes, wall = run_trials(task, features6, trials=num_trials, seed=args.seed,
+                            options=PlanningOptions(planner="q", cost="paper"),
                             policy=warm.policy, record_html=recording, progress=progress)
 successes = sum(o.success for o in outcomes)
 print(f"{successes}/{num_trials} trials succeeded in {wall:.1f} s; compositions {composition_counts(outcomes)}")

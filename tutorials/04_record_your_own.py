@@ -63,7 +63,8 @@ from drake_lfd.io.library import Library, check_end_effector_frame, library_feat
 from drake_lfd.io.library_manifest import MANIFEST_NAME
 from drake_lfd.io.plan_json import describe_uncovered
 from drake_lfd.io.task_files import load_task
-from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import plan_composition
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.robot.scene import table_under_robot
 
@@ -114,7 +115,9 @@ concrete = draw_trial(task, 0)
 table = table_under_robot(task.X_WB)
 floor_z = float(table.centre[2] + table.size[2] / 2)
 paper5 = Library.open("paper5")
-request = plan_task(concrete, library_features(paper5), floor_z=floor_z)
+# The paper's planning: Eq. 31's cost, in SE(3) alone (no joint-space check).
+paper = PlanningOptions.paper_baseline()
+request = plan_composition(concrete, library_features(paper5), paper, floor_z=floor_z)
 print(f"assembling with {paper5.label}: {request.status}")
 for line in describe_uncovered(request):
     print(f"  demonstration needed: {line}")
@@ -256,7 +259,7 @@ print(f"created {library.label}: {', '.join(library.names)}")
 # %%
 check_end_effector_frame(library, task.X_tool0_E, file=task.file)
 features = library_features(library)
-result = plan_task(concrete, features, floor_z=floor_z)
+result = plan_composition(concrete, features, paper, floor_z=floor_z)
 print(f"assembling with your library: {result.status}")
 if not result.planned:
     for line in describe_uncovered(result):
@@ -284,7 +287,7 @@ results = {}
 recording = out / "assembling_trial1.html"
 for name in task_names:
     scenario = task if name == "assembling" else load_task(SIMS / f"{name}.yaml")
-    outcomes, wall = run_trials(scenario, features, trials=1, seed=0,
+    outcomes, wall = run_trials(scenario, features, trials=1, seed=0, options=PlanningOptions(cost="paper"),
                                 record_html=recording if name == "assembling" else None)
     (outcome,) = outcomes
     print(f"{name}: {trial_summary_line(outcome)} ({wall:.1f} s)")

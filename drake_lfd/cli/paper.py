@@ -37,7 +37,7 @@ def add_parser(subparsers) -> None:
 def run(args) -> int:
     import sys
 
-    from drake_lfd.experiments.paper import run_paper
+    from drake_lfd.experiments.paper import PAPER_OPTIONS, run_paper
 
     require_at_least(args.trials, 1, "--trials")
     require_seed(args.seed)
@@ -47,10 +47,9 @@ def run(args) -> int:
     def log(line):
         print(line, file=sys.stderr, flush=True)
 
-    options = {} if workers == 1 and args.scheduler is None else {"workers": workers, "scheduler": args.scheduler}
-    if args.refine:
-        options["refine"] = True
-    results = run_paper(out, trials=args.trials, seed=args.seed, log=log, **options)
+    where = {} if workers == 1 and args.scheduler is None else {"workers": workers, "scheduler": args.scheduler}
+    options = PAPER_OPTIONS.replace(refine=args.refine)
+    results = run_paper(out, trials=args.trials, seed=args.seed, log=log, options=options, **where)
     tasks = results["tasks"]
     print(f"transferring {tasks['transferring']['success_count']}/{args.trials}, filling and pouring "
           f"{tasks['filling_pouring']['success_count']}/{args.trials}, assembling: "

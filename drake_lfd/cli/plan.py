@@ -16,10 +16,11 @@ from drake_lfd.cli.argument_checks import library_help, prepare_output, require_
 from drake_lfd.io.strict_json import write_json
 from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, EXIT_NO_EXECUTABLE_PLAN, InputError
 from drake_lfd.core.fidelity import COST_MODES
-from drake_lfd.planning.planner import PLANNERS
+from drake_lfd.planning.options import PLANNERS
 
 
-__all__ = ["add_planning_arguments", "add_parser", "load_policy_for", "request_script_path", "run"]
+__all__ = ["add_planning_arguments", "add_parser", "load_policy_for", "planning_options_of", "request_script_path",
+           "run"]
 
 
 def add_planning_arguments(parser) -> None:
@@ -104,37 +105,38 @@ def request_script_path(request_script: str, segment, count: int) -> Path:
     return path
 
 
+def planning_options_of(args):
+    """The :class:`~drake_lfd.planning.options.PlanningOptions` of ``--planner``,
+    ``--cost`` and ``--refine`` (the rest at their defaults, the joint-space check on)."""
+    from drake_lfd.planning.options import PlanningOptions
+
+    return PlanningOptions(planner=args.planner, cost=args.cost, refine=args.refine)
+
+
 def run(args) -> int:
-    from drake_lfd.io.library import Library, check_end_effector_frame, library_features
+    from drake_lfd.io.library import Library, check_end_effector_frame
     from drake_lfd.io.plan_json import describe_infeasible, describe_uncovered, plan_json
-    from drake_lfd.planning.planner import plan_task
-    from drake_lfd.diagrams.pipeline import joint_path_checker
-    from drake_lfd.robot.workcell import Workcell
+    from drake_lfd.experiments.planning_api import plan_task
     from drake_lfd.core.tasks import draw_trial
     from drake_lfd.io.task_files import load_task
 
     require_seed(args.seed)
     prepare_output(args.json, "--json")
     prepare_output(args.request_script, "--request-script")
+    options = planning_options_of(args)
     task = load_task(args.task)
     library = Library.open(args.library)
     check_end_effector_frame(library, task.X_tool0_E, file=args.task)
     policy = load_policy_for(args, library)
     trial = draw_trial(task, args.seed)
     library.write_feature_caches()
-    # The work cell the pipeline of ``simulate`` builds, so this plan is the one it runs.
-    workcell = Workcell.of(trial)
-    checker = joint_path_checker(workcell, task.simulation)
-    result = plan_task(trial, library_features(library), planner=args.planner, policy=policy, seed=args.seed,
-                       floor_z=workcell.planner_floor, checker=checker, cost=args.cost)
-    if args.refine and result.planned:
-        from drake_lfd.planning.refinement import refine_plan
-
-        result = refine_plan(result, checker)
+    # Planned in the work cell the pipeline of ``simulate`` builds, checked as its
+    # controller will be, so this plan is the one it runs.
+    result = plan_task(trial, library, options, policy=policy, seed=args.seed)
     script_paths = [request_script_path(args.request_script, u, len(result.uncovered)) for u in result.uncovered
                     ] if args.request_script else None
     if args.json:
-        write_json(Path(args.json), plan_json(result, cost=args.cost, script_paths=script_paths))
+        write_json(Path(args.json), plan_json(result, cost=options.cost, script_paths=script_paths))
     if result.planned:
         chain = " + ".join(f"{s.demo} (con_{s.con_from}->con_{s.con_to})" for s in result.composition)
         print(f"{task.name}: planned with {chain}; total cost {result.total_cost:.3f}, "

@@ -18,7 +18,7 @@ from drake_lfd.cli.argument_checks import prepare_output, require_at_least, requ
 from drake_lfd.io.json_lines import JsonLinesFile, json_lines_path_for
 from drake_lfd.io.strict_json import write_json
 from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, EXIT_NO_EXECUTABLE_PLAN, EXIT_OK, InputError
-from drake_lfd.cli.plan import add_planning_arguments, load_policy_for
+from drake_lfd.cli.plan import add_planning_arguments, load_policy_for, planning_options_of
 from drake_lfd.cli.sweep import add_worker_arguments, workers_of
 
 
@@ -80,6 +80,7 @@ def run(args) -> int:
             raise InputError("shows the trials one after another in one viewer: it needs --workers 1",
                              field="--meshcat")
     workers = 1 if args.meshcat else workers_of(args, args.trials)
+    options = planning_options_of(args)
     controller = None if args.controller is None else CONTROLLER_CHOICES[args.controller]
     prepare_output(args.json, "--json")
     prepare_output(args.html, "--html")
@@ -108,15 +109,14 @@ def run(args) -> int:
             print(f"{task.name}: Meshcat viewer at {meshcat.web_url()} (open it in a browser)", flush=True)
         if workers == 1 and args.scheduler is None:
             outcomes, wall = run_trials(
-                task, library_features(library), trials=args.trials, seed=args.seed, planner=args.planner,
-                policy=policy, record_html=args.html, progress=progress, meshcat=meshcat, cost=args.cost,
-                refine=args.refine, controller=controller,
+                task, library_features(library), trials=args.trials, seed=args.seed, options=options,
+                policy=policy, record_html=args.html, progress=progress, meshcat=meshcat, controller=controller,
             )
         else:  # the same trials on worker processes or a cluster, delivered in trial order
             from drake_lfd.experiments.parallel_trials import run_trials_on_workers, runner_spec
 
             runner = runner_spec(args.task, library, policy_file=args.policy if args.planner == "q" else None,
-                                 planner=args.planner, cost=args.cost, refine=args.refine, controller=controller)
+                                 options=options, controller=controller)
             outcomes, wall = run_trials_on_workers(
                 runner, trials=args.trials, seed=args.seed, record_html=args.html, progress=progress,
                 workers=workers, scheduler=args.scheduler,

@@ -22,7 +22,8 @@ from drake_lfd.core.errors import InputError
 from drake_lfd.io.atomic_files import fsync_directory
 from drake_lfd.io.json_lines import JsonLinesFile, read_json_lines
 
-__all__ = ["add_parser", "add_worker_arguments", "runner_options_of", "workers_of", "run", "SWEEP_ROWS", "SUMMARY"]
+__all__ = ["add_parser", "add_worker_arguments", "runner_options_of", "settings_options_of", "workers_of", "run",
+           "SWEEP_ROWS", "SUMMARY"]
 
 SWEEP_ROWS = "sweep.jsonl"
 SUMMARY = "summary.json"
@@ -43,12 +44,25 @@ def add_worker_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def runner_options_of(args) -> dict:
-    """The TrialRunner options of a RunnerSpec (``planner``, ``cost``, ...) that the
-    command has as options of the same name (``--planner``, ``--cost``, ...)."""
-    from drake_lfd.experiments.parallel_trials import RunnerSpec
+    """The RunnerSpec keyword options of the command's flags: ``options``, the
+    :class:`~drake_lfd.planning.options.PlanningOptions` of ``--planner``, ``--cost`` and
+    ``--refine`` (built once), and ``controller`` when the command has ``--controller``."""
+    from drake_lfd.cli.plan import planning_options_of
 
-    names = RunnerSpec(task_file="", library="").runner_options()
-    return {name: getattr(args, name) for name in names if hasattr(args, name)}
+    options = {"options": planning_options_of(args)}
+    if hasattr(args, "controller"):
+        options["controller"] = args.controller
+    return options
+
+
+def settings_options_of(runner_options: dict) -> dict:
+    """The options as ``summary.json``'s settings record them: ``planner``, ``cost``,
+    ``refine`` (and ``controller`` when the command sets it)."""
+    planning = runner_options["options"]
+    settings = {"planner": planning.planner, "cost": planning.cost, "refine": planning.refine}
+    if "controller" in runner_options:
+        settings["controller"] = runner_options["controller"]
+    return settings
 
 
 def workers_of(args, trials: int) -> int:
@@ -142,12 +156,12 @@ def run(args) -> int:
             specs.append(spec)
 
     def row_of(spec, outcome) -> dict:
-        return sweep.sweep_row(task_name=task.name, library=library.label, options=spec.runner.runner_options(),
+        return sweep.sweep_row(task_name=task.name, library=library.label, options=spec.runner.options_json(),
                                policy=policy, base=spec.runner.base, variables=variables[spec.seed], outcome=outcome)
 
     def key_of(spec) -> tuple:
         base = spec.runner.base
-        return sweep.row_key({"task": task.name, "library": library.label, "options": spec.runner.runner_options(),
+        return sweep.row_key({"task": task.name, "library": library.label, "options": spec.runner.options_json(),
                               "policy": policy, "base_x": base.x, "base_y": base.y, "base_z": base.z,
                               "base_yaw_deg": base.yaw_deg, "trial": spec.trial, "seed": spec.seed})
 
@@ -195,7 +209,7 @@ def run(args) -> int:
     rows = [rows_of[key] for key in keys]
     summary = sweep.sweep_summary(rows, grid=grid, task_base=task_base, settings={
         "task": task.name, "task_file": str(Path(args.task).resolve()), "library": library.label,
-        "options": options, "policy": policy, "trials_per_base": args.trials, "seed": args.seed,
+        "options": settings_options_of(options), "policy": policy, "trials_per_base": args.trials, "seed": args.seed,
         "workers": None if args.scheduler else workers, "scheduler": args.scheduler,
         "wall_time_s": time.perf_counter() - start,
     })

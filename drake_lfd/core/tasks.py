@@ -255,6 +255,7 @@ class ConcreteTask:
     file: str | None = None
     tool: tuple | None = None  # as Task.tool
     timing: object = None  # as Task.timing
+    simulation: object = None  # as Task.simulation (the checker of drake_lfd.plan_task reads its margins)
 
     def __post_init__(self):
         object.__setattr__(self, "critical_configurations", tuple(self.critical_configurations))
@@ -411,4 +412,5 @@ def draw_trial(task, seed):
         file=task.file,
         tool=task.tool,
         timing=task.timing,
+        simulation=task.simulation,
     )

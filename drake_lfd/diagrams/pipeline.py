@@ -57,14 +57,15 @@ from pydrake.systems.framework import Context, Diagram, DiagramBuilder, System
 from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
 
 from drake_lfd.core.features import Feature
-from drake_lfd.core.similarity import Tolerances
 from drake_lfd.core.tasks import Box, ConcreteTask, Task, draw_trial
 from drake_lfd.core.timing import TimedPlan
+from drake_lfd.io.library_source import resolve_features
 from drake_lfd.io.plan_json import describe_uncovered
 from drake_lfd.io.simulation_config import COMPILED_METHOD, PipelineConfig
 from drake_lfd.diagrams.judging import RunJudgement, judge_run
 from drake_lfd.diagrams.station import Station
 from drake_lfd.diagrams.trial_result import ClosedLoopResult, critical_errors_from_log
+from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan
@@ -156,10 +157,17 @@ class Pipeline(Diagram):
     with_table : bool
         Put the table under the robot (it is also the floor the planner keeps the tool
         above).
+    task : Task, optional
+        The task whose trials the pipeline runs (:meth:`make_simulator` draws them).
     features : Mapping[str, Feature], optional
         The library; required unless ``plan`` is given.
-    planner : {"exact", "q"}
+    planning : PlanningOptions
+        How the planner system plans
+        (:class:`~drake_lfd.planning.options.PlanningOptions`; by default as
+        ``drake-lfd plan`` does: exact planner, fidelity cost, the plan-time joint-space
+        check, no refinement; ``PlanningOptions.paper_baseline()`` for the paper's).
     policy : QPolicy, optional
+        The Q-policy of ``planning.planner == "q"``.
     plan : TimedPlan, optional
         A fixed motion instead of library and planner.
     config : PipelineConfig, optional
@@ -167,30 +175,25 @@ class Pipeline(Diagram):
     accept_demonstrations : bool
         Give the library system its ``demonstration`` input (exported as
         ``demonstration``).
-    joint_check : bool
-        Plan only executable compositions (the plan-time joint-space check,
-        :func:`joint_path_checker`); False plans in SE(3) alone, as the paper does (for
-        comparisons).
-    cost : {"paper", "fidelity"}
-        The planner's action cost (:class:`~drake_lfd.systems.planner.PlannerSystem`):
-        Eq. 31, or with the shape-fidelity terms (docs/method.rst, Shape fidelity).
-    refine : bool
-        Refine each executable plan by trajectory optimization (the planner system's
-        ``refine``; needs ``joint_check``).
 
     Attributes
     ----------
-    station, library, planner, source, controller, monitor, logger
-        The subsystems (``library`` and ``planner`` are None with a given ``plan``,
-        ``source`` with the compiled controller).
+    station, library, planner, source, controller, monitor, logger, trial_end
+        The subsystems (``library`` and ``planner`` are None with a given ``plan``;
+        ``source`` is the JointPathSource with the compiled controller, the
+        PlanTrajectorySource with the task-space one).
     law : DifferentialIKLaw
         The controller's law on the controller plant (the compiled controller's limits;
         following a plan that has no joint path).
     compiled : bool
         Whether the controller is the compiled one.
     config : PipelineConfig
+    planning : PlanningOptions
+    task : Task or None
     workcell : Workcell
     table : Box or None
+    kinematics : UR5eKinematics
+        The arm's forward kinematics in this work cell (judging the runs).
     """
 
     def __init__(
@@ -205,23 +208,22 @@ class Pipeline(Diagram):
         tool=None,
         with_table: bool = True,
         features: Mapping[str, Feature] | None = None,
-        planner: str = "exact",
+        planning: PlanningOptions = PlanningOptions(),
         policy: QPolicy | None = None,
         plan: TimedPlan | None = None,
         config: PipelineConfig | None = None,
         meshcat: Meshcat | None = None,
         accept_demonstrations: bool = False,
-        joint_check: bool = True,
-        cost: str = "paper",
-        refine: bool = False,
     ):
         super().__init__()
         # What it was built from, for a sibling with another controller (``with_controller``).
         self._options = dict(task=task, workcell=workcell, X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles,
                              safety_shells=safety_shells, tool=tool, with_table=with_table, features=features,
-                             planner=planner, policy=policy, plan=plan, config=config, meshcat=meshcat,
-                             accept_demonstrations=accept_demonstrations, joint_check=joint_check, cost=cost,
-                             refine=refine)
+                             planning=planning, policy=policy, plan=plan, config=config, meshcat=meshcat,
+                             accept_demonstrations=accept_demonstrations)
+        if not isinstance(planning, PlanningOptions):
+            raise TypeError(f"planning must be PlanningOptions, got {type(planning).__name__}")
+        self.planning = planning
         config = (PipelineConfig() if config is None else config).checked()
         self.config = config
         self.task = task
@@ -246,17 +248,17 @@ class Pipeline(Diagram):
                 features=features, X_tool0_E=X_tool0_E, accept_demonstrations=accept_demonstrations,
                 check_period=config.planner.check_period))
             self.planner = builder.AddNamedSystem("planner", PlannerSystem(
-                planner=planner, policy=policy, start_time_s=config.settle_s, floor_z=floor_z,
-                checker=joint_path_checker(workcell, config) if joint_check else None,
+                options=planning, policy=policy, start_time_s=config.settle_s, floor_z=floor_z,
+                checker=joint_path_checker(workcell, config) if planning.joint_check else None,
                 # The compiled controller tracks the joint path set before a run (a run
                 # with task changes goes to a task-space sibling, ``with_controller``):
                 # nothing to check for during it.
-                check_period=None if self.compiled else config.planner.check_period, cost=cost, refine=refine))
+                check_period=None if self.compiled else config.planner.check_period))
             plan_port = self.planner.plan_output_port
             # The library prepared for the legal-action table (its stacks, its span index
             # and the index's one-time scipy.spatial import) is built with the Diagram,
             # not in the first trial's plan; every plan of these features reuses it.
-            prepared_library(list(features.values()), Tolerances())
+            prepared_library(list(features.values()), planning.tolerances)
         else:
             constant = builder.AddNamedSystem("given_plan", ConstantValueSource(
                 AbstractValue.Make(scheduled_plan_from_timed(plan, config.settle_s))))
@@ -474,14 +476,27 @@ class Pipeline(Diagram):
         return 1.0 if self.trial_judgement(context).success else 0.0
 
 
-def build_pipeline(task: ConcreteTask | None = None, features: Mapping[str, Feature] | None = None, *,
-                   plan: TimedPlan | None = None, **kwargs) -> Pipeline:
+def build_pipeline(task: Task | ConcreteTask | None = None, features: Mapping[str, Feature] | None = None, *,
+                   library=None, plan: TimedPlan | None = None, **kwargs) -> Pipeline:
     """A :class:`Pipeline` for the work cell of ``task`` (:meth:`Workcell.of
     <drake_lfd.robot.workcell.Workcell.of>`: base, tool frame and tool, obstacles, shells,
-    the table unless ``with_table=False``; the critical configurations are set later
-    through the ``task`` input)."""
+    the table unless ``with_table=False``; the trials' critical configurations are set
+    later, on the ``task`` input or by :meth:`Pipeline.make_simulator`).
+
+    The library is ``features`` (name -> Feature) or ``library``: an opened
+    :class:`~drake_lfd.io.library.Library`, a library folder or a bundled library's name
+    (``"paper5"``); its end-effector frame must be the task's. ``kwargs`` are
+    :class:`Pipeline`'s (``planning``, ``config``, ``meshcat``, ...): by default the
+    planner plans as ``drake-lfd plan`` does.
+    """
+    if library is not None:
+        if features is not None:
+            raise ValueError("give the library once: features or library")
+        features = resolve_features(library, task)
     if task is not None and "workcell" not in kwargs:
         kwargs["workcell"] = Workcell.of(task, with_table=kwargs.get("with_table", True))
     if isinstance(task, Task):
         kwargs.setdefault("task", task)
+    if task is not None and "config" not in kwargs and getattr(task, "simulation", None) is not None:
+        kwargs["config"] = task.simulation
     return Pipeline(features=features, plan=plan, **kwargs)

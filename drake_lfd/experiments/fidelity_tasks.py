@@ -45,7 +45,8 @@ from drake_lfd.core.dual_quaternion import (
 )
 from drake_lfd.core.features import Feature
 from drake_lfd.core.tasks import ConcreteTask
-from drake_lfd.planning.planner import plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import plan_composition
 from drake_lfd.planning.random_tasks import TRAINING_CUBE_CENTRE
 
 __all__ = ["SUCCESS_TOLERANCE_M", "Piece", "FidelityTask", "Evaluation", "fidelity_task", "path_distance",
@@ -175,7 +176,7 @@ def evaluate(case: FidelityTask, features: Mapping[str, Feature], cost: str, *,
              tolerance_m: float = SUCCESS_TOLERANCE_M) -> Evaluation:
     """Plans ``case`` with the exact planner in SE(3) (no joint-space check) in cost mode
     ``cost`` and judges it (module docstring)."""
-    result = plan_task(case.task, features, cost=cost, checker=None)
+    result = plan_composition(case.task, features, PlanningOptions(cost=cost, joint_check=False))
     if not result.planned:
         return Evaluation(result.status, (), False, float("inf"), False)
     composition = tuple((s.demo, s.con_from, s.con_to) for s in result.composition)

@@ -45,7 +45,8 @@ from drake_lfd.io.strict_json import write_json
 from drake_lfd.experiments.figures import training_curve_figure
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.plan_json import uncovered_json
-from drake_lfd.planning.planner import build_problem, plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import build_problem, plan_composition
 from drake_lfd.io.policy_files import save_policy
 from drake_lfd.planning.q_learning import episodes_to_steady
 from drake_lfd.experiments.parallel_trials import run_trials_on_workers, runner_spec, trial_cluster
@@ -62,7 +63,7 @@ from drake_lfd.core.tasks import draw_trial
 from drake_lfd.io.task_files import load_task
 from drake_lfd.planning.training import train_on_random_tasks
 
-__all__ = ['PAPER', 'run_paper', 'report_markdown']
+__all__ = ['PAPER', 'PAPER_OPTIONS', 'run_paper', 'report_markdown']
 
 PAPER = {
     "training_time_s": 1927.42,
@@ -75,6 +76,10 @@ PAPER = {
     "assembling": "20/20 after the new demonstration; twisting 1 (con_1-con_2), span (con_2-con_3), "
                   "twisting 2 (con_3-con_4)",
 }
+
+#: How the closed-loop trials of Section 6 are planned: with the trained Q-policy and the
+#: paper's action cost (Eq. 31), joint-space checked like every closed-loop trial.
+PAPER_OPTIONS = PlanningOptions(planner="q", cost="paper")
 
 
 def _drake_version() -> str:
@@ -92,12 +97,12 @@ def _reasons(outcome) -> str:
 
 
 def _task_results(name, task, features, policy, trials, seed, out, log, finished=None, record=True,
-                  workers=1, scheduler=None, library=None, policy_file=None, refine=False, cluster=None):
+                  workers=1, scheduler=None, library=None, policy_file=None, options=PAPER_OPTIONS, cluster=None):
     """Runs the trials of one task; figures and (``record``) a recording of the first
     trial; each finished trial is appended to ``finished`` (a JsonLinesFile). With more
     than one worker (or a scheduler) the trials run on worker processes (those of
     ``cluster``, if given), which load the task file, ``library`` (opened) and the saved
-    ``policy_file`` themselves."""
+    ``policy_file`` themselves. Every trial is planned as ``options`` say."""
     recording = out / f"{name}.html"
 
     def progress(done, total, outcome):
@@ -107,12 +112,12 @@ def _task_results(name, task, features, policy, trials, seed, out, log, finished
 
     if workers == 1 and scheduler is None:
         outcomes, wall = run_trials(
-            task, features, trials=trials, seed=seed, planner="q", policy=policy, cost="paper", refine=refine,
+            task, features, trials=trials, seed=seed, options=options, policy=policy,
             record_html=recording if record else None, progress=progress,
         )
     else:
         outcomes, wall = run_trials_on_workers(
-            runner_spec(task.file, library, policy_file=policy_file, planner="q", refine=refine), trials=trials,
+            runner_spec(task.file, library, policy_file=policy_file, options=options), trials=trials,
             seed=seed,
             record_html=recording if record else None, progress=progress, workers=workers, scheduler=scheduler,
             cluster=cluster,
@@ -149,18 +154,20 @@ def _task_results(name, task, features, policy, trials, seed, out, log, finished
 
 
 def run_paper(out: Path, *, trials: int = 20, seed: int = 0, log: Callable[[str], None] = print,
-              workers: int = 1, scheduler: str | None = None, refine: bool = False) -> dict:
+              workers: int = 1, scheduler: str | None = None, options: PlanningOptions = PAPER_OPTIONS) -> dict:
     """Runs Section 6 and writes everything into ``out``; returns the results document.
     Every closed-loop trial is appended to ``out / "trials.jsonl"`` as it finishes. The
     closed-loop trials run on ``workers`` processes (or the workers of ``scheduler``;
     :mod:`~drake_lfd.experiments.parallel_trials`; one cluster for all three tasks),
     with the same results; the training runs here.
-    ``refine`` refines every closed-loop trial's plan by trajectory optimization
-    (``planning/refinement.py``)."""
+    ``options`` plan every closed-loop trial (default :data:`PAPER_OPTIONS`: the
+    Q-planner with the paper's cost, joint-space checked; ``drake-lfd paper --refine``
+    adds ``refine=True``); the request with five demonstrations is planned with them
+    without the joint-space check."""
     out.mkdir(parents=True, exist_ok=True)
     with JsonLinesFile(out / "trials.jsonl") as finished, _paper_cluster(workers, scheduler, trials) as cluster:
         return _run_paper(out, trials=trials, seed=seed, log=log, finished=finished, workers=workers,
-                          scheduler=scheduler, refine=refine, cluster=cluster)
+                          scheduler=scheduler, options=options, cluster=cluster)
 
 
 def _paper_cluster(workers: int, scheduler: str | None, trials: int):
@@ -172,7 +179,7 @@ def _paper_cluster(workers: int, scheduler: str | None, trials: int):
 
 
 def _run_paper(out: Path, *, trials: int, seed: int, log: Callable[[str], None], finished, workers: int,
-               scheduler: str | None, refine: bool = False, cluster=None) -> dict:
+               scheduler: str | None, options: PlanningOptions = PAPER_OPTIONS, cluster=None) -> dict:
     start = time.perf_counter()
     no_meshcat = not drake_allows("meshcat")
     if no_meshcat:
@@ -202,12 +209,12 @@ def _run_paper(out: Path, *, trials: int, seed: int, log: Callable[[str], None],
         results["tasks"][name] = _task_results(name, tasks[name], features5, training.policy, trials, seed, out, log,
                                                finished, record=not no_meshcat, workers=workers, scheduler=scheduler,
                                                library=paper5, policy_file=out / "policy_paper5.json",
-                                               refine=refine, cluster=cluster)
+                                               options=options, cluster=cluster)
 
     log("assembling with paper5")
     assembling = tasks["assembling"]
-    first_try = plan_task(draw_trial(assembling, seed), features5, planner="q", policy=training.policy,
-                          cost="paper")
+    first_try = plan_composition(draw_trial(assembling, seed), features5,
+                                 options.replace(joint_check=False, refine=False), policy=training.policy)
     assembling_results = {"initial_status": first_try.status, "uncovered": uncovered_json(first_try)}
     for segment in first_try.uncovered:
         log(f"  demonstration requested for con_{segment.con_from} -> con_{segment.con_to}: "
@@ -232,7 +239,7 @@ def _run_paper(out: Path, *, trials: int, seed: int, log: Callable[[str], None],
     assembling_results["after_new_demo"] = _task_results(
         "assembling", assembling, features6, retraining.policy, trials, seed, out, log, finished,
         record=not no_meshcat, workers=workers, scheduler=scheduler, library=paper6,
-        policy_file=out / "policy_paper6.json", refine=refine, cluster=cluster)
+        policy_file=out / "policy_paper6.json", options=options, cluster=cluster)
     results["tasks"]["assembling"] = assembling_results
     results["table5"] = [
         {"demo": row.demo, "sample": row.sample, "alpha": float(row.alpha)} for row in table5

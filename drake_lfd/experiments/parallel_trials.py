@@ -51,6 +51,7 @@ from typing import Callable, Iterator, Sequence
 import numpy as np
 
 from drake_lfd.core.errors import InputError
+from drake_lfd.planning.options import PlanningOptions
 
 __all__ = [
     "BasePlacement",
@@ -116,8 +117,9 @@ class RunnerSpec:
     ``base`` say what to load; ``fingerprint`` (:func:`runner_spec`) changes when those
     files do, so a long-lived worker of a cluster does not reuse a stale runner. Every
     other field is a keyword option of
-    :class:`~drake_lfd.experiments.simulation.TrialRunner` (a new planner option is a new
-    field here, with the TrialRunner's default).
+    :class:`~drake_lfd.experiments.simulation.TrialRunner`, with its default: ``options``
+    (the :class:`~drake_lfd.planning.options.PlanningOptions`, hashable) and
+    ``controller``.
     """
 
     task_file: str
@@ -125,9 +127,7 @@ class RunnerSpec:
     policy_file: str | None = None
     base: BasePlacement | None = None
     fingerprint: str = ""
-    planner: str = "exact"
-    cost: str = "paper"
-    refine: bool = False
+    options: PlanningOptions = PlanningOptions()
     controller: str | None = None
 
     def runner_options(self) -> dict:
@@ -135,6 +135,12 @@ class RunnerSpec:
         loading = {"task_file", "library", "policy_file", "base", "fingerprint"}
         return {field.name: getattr(self, field.name) for field in dataclasses.fields(self)
                 if field.name not in loading}
+
+    def options_json(self) -> dict:
+        """The options as a sweep's rows and summary record them (JSON): ``planner``,
+        ``cost``, ``refine`` (the command line's planning options) and ``controller``."""
+        return {"planner": self.options.planner, "cost": self.options.cost, "refine": self.options.refine,
+                "controller": self.controller}
 
     def task(self):
         """The task file's task, with ``base`` (if any) as its robot base."""
@@ -188,7 +194,8 @@ def runner_spec(task_file, library, *, policy_file=None, base: BasePlacement | N
     policy_file : str or Path, optional
     base : BasePlacement, optional
     **options
-        TrialRunner options (``planner``, ...), RunnerSpec fields.
+        TrialRunner options, RunnerSpec fields: ``options`` (a
+        :class:`~drake_lfd.planning.options.PlanningOptions`), ``controller``.
     """
     from drake_lfd.io.library_manifest import MANIFEST_NAME
 

@@ -1,7 +1,8 @@
 """Closed-loop evaluation trials of a task: plan each concrete trial, run it, judge it.
 
-Trial i (0-based) draws its concrete task with seed ``seed + i``; it is planned with the
-chosen planner, simulated closed loop on the UR5e and judged
+Trial i (0-based) draws its concrete task with seed ``seed + i``; it is planned as the
+:class:`~drake_lfd.planning.options.PlanningOptions` say (by default as ``drake-lfd plan``
+plans), simulated closed loop on the UR5e and judged
 (:mod:`drake_lfd.diagrams.judging`: critical configurations within 5 mm / 2 deg, path
 constraints, no penetration of obstacles or shells, joint position and speed limits).
 All trials of a task run on one pipeline Diagram (:class:`TrialRunner`): the task is set
@@ -32,6 +33,7 @@ from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.io.plan_json import composition_json, critical_configurations_json, describe_uncovered
+from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.problem_size import check_problem_size
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
@@ -80,19 +82,42 @@ class TrialRunner:
     between trials; each trial sets its concrete task on the Diagram's ``task`` input.
     A trial to be recorded runs on a second pipeline built with a Meshcat (made on the
     first such request), so the others do not pay for visualisation.
+
+    Parameters
+    ----------
+    task : Task
+    features : Mapping[str, Feature]
+        The library's features.
+    options : PlanningOptions
+        How every trial is planned (default: as ``drake-lfd plan`` plans: exact planner,
+        fidelity cost, joint-space check, no refinement).
+    policy : QPolicy, optional
+        The Q-policy of ``options.planner == "q"``.
+    with_table : bool
+        Put the table under the robot.
+    config : PipelineConfig, optional
+        The pipeline's settings (default: the task's ``simulation`` block).
+    meshcat : Meshcat, optional
+        Show every trial there as it runs.
+    controller : str, optional
+        The controller method, over the task's (``"compiled"``, ``"drake"``,
+        ``"pseudo_inverse"``).
     """
 
-    def __init__(self, task: Task, features: Mapping[str, Feature], *, planner: str = "exact",
+    def __init__(self, task: Task, features: Mapping[str, Feature], *, options: PlanningOptions = PlanningOptions(),
                  policy: QPolicy | None = None, with_table: bool = True, config: PipelineConfig | None = None,
-                 joint_check: bool = True, meshcat: Meshcat | None = None, cost: str = "paper",
-                 refine: bool = False, controller: str | None = None):
-        check_problem_size(task, features, cost=cost)  # a problem too large is refused before the pipeline is built
+                 meshcat: Meshcat | None = None, controller: str | None = None):
+        if not isinstance(options, PlanningOptions):
+            raise TypeError(f"options must be PlanningOptions, got {type(options).__name__}")
+        # A problem too large is refused before the pipeline is built.
+        check_problem_size(task, features, options.max_span, options.cost)
         self.task = task
         config = config if config is not None else task.simulation
         if controller is not None:  # the controller method, over the task's (``simulate --controller``)
             config = dataclasses.replace(config, controller=dataclasses.replace(config.controller, method=controller))
-        self._options = dict(features=features, planner=planner, policy=policy, with_table=with_table,
-                             joint_check=joint_check, cost=cost, refine=refine, config=config)
+        self.options = options
+        self._options = dict(features=features, planning=options, policy=policy, with_table=with_table,
+                             config=config)
         self._recording_runner = None
         if meshcat is not None:
             # Live: every trial runs on the pipeline that draws into ``meshcat``.
@@ -142,18 +167,14 @@ def run_trial(
     *,
     trial: int,
     seed: int,
-    planner: str = "exact",
+    options: PlanningOptions = PlanningOptions(),
     policy: QPolicy | None = None,
     record_html: str | Path | None = None,
     with_table: bool = True,
-    cost: str = "paper",
-    refine: bool = False,
 ) -> TrialOutcome:
-    """Plans, simulates and judges one concrete trial of ``task`` (a one-off
-    :class:`TrialRunner`; use one runner for many trials; ``refine``: refine each plan by
-    trajectory optimization, ``planning/refinement.py``)."""
-    runner = TrialRunner(task, features, planner=planner, policy=policy, with_table=with_table, cost=cost,
-                         refine=refine)
+    """Plans (as ``options`` say), simulates and judges one concrete trial of ``task`` (a
+    one-off :class:`TrialRunner`; use one runner for many trials)."""
+    runner = TrialRunner(task, features, options=options, policy=policy, with_table=with_table)
     return runner.run(trial=trial, seed=seed, record_html=record_html)
 
 
@@ -163,25 +184,23 @@ def run_trials(
     *,
     trials: int,
     seed: int = 0,
-    planner: str = "exact",
+    options: PlanningOptions = PlanningOptions(),
     policy: QPolicy | None = None,
     record_html: str | Path | None = None,
     progress: Callable[[int, int, TrialOutcome], None] | None = None,
     meshcat: Meshcat | None = None,
-    cost: str = "paper",
-    refine: bool = False,
     controller: str | None = None,
 ) -> tuple[list[TrialOutcome], float]:
-    """Runs ``trials`` trials (seeds ``seed``, ``seed + 1``, ...) on one pipeline Diagram;
-    the first one that plans is recorded to ``record_html``; with ``meshcat``, every trial
-    is shown there as it runs; ``cost`` is the planner's action cost (``"paper"``: Eq. 31;
-    ``"fidelity"``: with the shape-fidelity terms); ``refine`` refines each plan by
-    trajectory optimization (``planning/refinement.py``); ``controller`` overrides the
-    task's controller method (``"compiled"``, ``"drake"``, ``"pseudo_inverse"``). Returns the outcomes and the
-    wall time (planning included)."""
+    """Runs ``trials`` trials (seeds ``seed``, ``seed + 1``, ...) on one pipeline Diagram,
+    each planned as ``options`` say (default: as ``drake-lfd plan`` plans;
+    :meth:`PlanningOptions.paper_baseline
+    <drake_lfd.planning.options.PlanningOptions.paper_baseline>` for the paper's Eq. 31
+    without the joint-space check); the first one that plans is recorded to
+    ``record_html``; with ``meshcat``, every trial is shown there as it runs;
+    ``controller`` overrides the task's controller method (``"compiled"``, ``"drake"``,
+    ``"pseudo_inverse"``). Returns the outcomes and the wall time (planning included)."""
     start = time.perf_counter()
-    runner = TrialRunner(task, features, planner=planner, policy=policy, meshcat=meshcat, cost=cost,
-                         refine=refine, controller=controller)
+    runner = TrialRunner(task, features, options=options, policy=policy, meshcat=meshcat, controller=controller)
     outcomes = []
     recorded = record_html is None
     for i in range(trials):

@@ -4,6 +4,7 @@
 actions, rewards, penalties), ``exact_planner`` (shortest path), ``q_learning``
 (Algorithm 1 and 2), ``state_abstraction`` (the policy's task-independent key),
 ``training``, ``random_tasks``, ``gym_env`` (the MDP as a Gymnasium environment),
-``planner`` (plan a task: compose, map, time), ``replanning`` (a plan on the
+``options`` (the planning options, with the command line's defaults), ``planner``
+(plan a task: compose, map, time), ``replanning`` (a plan on the
 simulation clock, and replanning when the task changes).
 """

@@ -30,24 +30,19 @@ from drake_lfd.core.dual_quaternion import (
 from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.executable import InfeasibleSegment, search_executable
 from drake_lfd.planning.problem_size import check_problem_size
+from drake_lfd.planning.options import PLANNERS, PlanningOptions
 from drake_lfd.planning.refusals import blocked_configurations, distinct_reasons
 from drake_lfd.planning.stretching import solve_within_stretch_bound
 from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.features import Feature
 from drake_lfd.core.fidelity import FidelityWeights, check_cost_mode
 from drake_lfd.core.mapping import map_segment, map_segment_twists
-from drake_lfd.planning.q_learning import DEFAULT_REFINE_EPISODES, QPolicy, plan_q
+from drake_lfd.planning.q_learning import QPolicy, plan_q
 from drake_lfd.core.similarity import Tolerances
 from drake_lfd.core.tasks import Box, ConcreteTask, angle_candidates, stops_of
 from drake_lfd.robot.joint_path import JointPath, JointPathChecker, ur5e_reach_m
 from drake_lfd.robot.path_timing import TimingError, retime_plan
-from drake_lfd.core.timing import (
-    DEFAULT_MAX_ANGULAR_SPEED_RAD_S,
-    DEFAULT_MAX_SPEED_M_S,
-    TimedPlan,
-    TimingLimits,
-    time_plan,
-)
+from drake_lfd.core.timing import TimedPlan, TimingLimits, time_plan
 
 __all__ = [
     'PLANNERS',
@@ -68,10 +63,9 @@ __all__ = [
     'map_span_clear',
     'compose_plan',
     'out_of_reach',
-    'plan_task',
+    'plan_composition',
 ]
 
-PLANNERS = ("exact", "q")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -402,52 +396,55 @@ def out_of_reach(task: ConcreteTask) -> list[InfeasibleSegment]:
     return segments
 
 
-def plan_task(
+def plan_composition(
     task: ConcreteTask,
     features: Mapping[str, Feature],
+    options: PlanningOptions,
     *,
-    planner: str = "exact",
     policy: QPolicy | None = None,
-    tolerances: Tolerances = Tolerances(),
-    max_span: int | None = None,
-    max_speed_m_s: float = DEFAULT_MAX_SPEED_M_S,
-    max_angular_speed_rad_s: float = DEFAULT_MAX_ANGULAR_SPEED_RAD_S,
-    refine_episodes: int = DEFAULT_REFINE_EPISODES,
     seed: int = 0,
     floor_z: float | None = None,
-    clearance_points_E: np.ndarray | None = None,
     checker: JointPathChecker | None = None,
-    timing: TimingLimits | None = None,
-    cost: str = "paper",
-    fidelity_weights: FidelityWeights = FidelityWeights(),
+    clearance_points_E: np.ndarray | None = None,
 ) -> PlanResult:
-    """Plans one concrete task with the named planner (``exact`` or ``q``; the Q-planner
-    first refines on the task for ``refine_episodes`` episodes, seeded by ``seed``).
+    """Plans one concrete task with the library's ``features`` as ``options`` say: the
+    core of :func:`drake_lfd.plan_task`, which also resolves the library, builds the
+    checker and refines.
 
-    ``cost`` is the action cost both planners minimise: ``"paper"``, Eq. 31's total
-    alpha (the shape-fidelity terms only break its ties), or ``"fidelity"``, alpha plus
-    the shape-fidelity terms weighted by ``fidelity_weights`` (``core/fidelity.py``,
-    docs/method.rst, Shape fidelity). The plan's ``total_cost`` and step costs are the
-    chosen allocations' total alpha (Eq. 31) in both modes.
+    ``options.planner`` is ``"exact"`` or ``"q"`` (the Q-planner, with ``policy``, first
+    refines on the task for ``options.refine_episodes`` episodes, seeded by ``seed``).
+    ``options.cost`` is the action cost both planners minimise: ``"paper"``, Eq. 31's
+    total alpha (the shape-fidelity terms only break its ties), or ``"fidelity"``, alpha
+    plus the shape-fidelity terms weighted by ``options.fidelity_weights``
+    (``core/fidelity.py``, docs/method.rst, Shape fidelity). The plan's ``total_cost``
+    and step costs are the chosen allocations' total alpha (Eq. 31) in both modes.
+    ``options.joint_check`` and ``options.refine`` are for the caller that builds the
+    checker and refines (:func:`drake_lfd.plan_task`, the planner system): here the
+    ``checker`` given decides.
 
     With a ``checker`` (the task's scene and the controller's law), only executable
     compositions are returned (``planning/executable.py``): a critical configuration
     out of reach, or every covering composition blocked, gives ``no_executable_plan``.
     The executable plan is then timed time-optimally along its checked joint path under
-    ``timing`` (default: the task's ``timing`` block, else :class:`TimingLimits`'s
-    defaults; ``robot/path_timing.py``), stopping where the task's critical
-    configurations say ``stop`` (the first and the last by default) and at corners.
-    Without a checker the plan keeps the geometric pass's timing (``core/timing.py``).
+    ``options.timing`` (default: the task's ``timing`` block, else
+    :class:`TimingLimits`'s defaults; ``robot/path_timing.py``), stopping where the
+    task's critical configurations say ``stop`` (the first and the last by default) and
+    at corners. Without a checker the plan keeps the geometric pass's timing
+    (``core/timing.py``, with ``options.max_speed_m_s`` and
+    ``options.max_angular_speed_rad_s``).
 
     Each span's free twist keeps the tool path clear of the task's obstacles and shells
     and above ``floor_z``; ``clearance_points_E`` (k, 3) are the points fixed in E that
     must stay clear (default: :func:`tool_clearance_points` of the task's ``X_tool0_E``).
     """
-    if planner not in PLANNERS:
-        raise ValueError(f"planner must be one of {PLANNERS}, got {planner!r}")
+    if not isinstance(options, PlanningOptions):
+        raise TypeError(f"options must be PlanningOptions, got {type(options).__name__}")
+    planner, cost = options.planner, options.cost
+    tolerances, max_span, fidelity_weights = options.tolerances, options.max_span, options.fidelity_weights
+    refine_episodes, timing = options.refine_episodes, options.timing
+    max_speed_m_s, max_angular_speed_rad_s = options.max_speed_m_s, options.max_angular_speed_rad_s
     if planner == "q" and policy is None:
         raise ValueError("the q planner needs a policy")
-    check_cost_mode(cost)
     check_problem_size(task, features, max_span, cost)  # before anything is allocated
     angles, poses = task_candidates(task)
     nominal = np.array([a[len(a) // 2] for a in angles])

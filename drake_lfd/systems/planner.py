@@ -1,7 +1,8 @@
 """The planner as a Drake system: task and library in, a scheduled plan out.
 
-:class:`PlannerSystem` runs :func:`drake_lfd.planning.planner.plan_task` (the exact
-shortest-path planner or the Q-policy's greedy walk) inside a Diagram. It plans at
+:class:`PlannerSystem` runs :func:`drake_lfd.planning.planner.plan_composition` (the
+exact shortest-path planner or the Q-policy's greedy walk, as its
+:class:`~drake_lfd.planning.options.PlanningOptions` say) inside a Diagram. It plans at
 initialization, and every ``check_period`` s it compares its inputs with what its plan
 was made for: when the task (or the library) has changed, it plans again from where the
 robot is on the current plan, following the paper's MDP (the state is the current
@@ -21,10 +22,10 @@ import dataclasses
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, DiagramBuilder, EventStatus, LeafSystem, OutputPort
 
-from drake_lfd.core.fidelity import check_cost_mode
 from drake_lfd.core.tasks import ConcreteTask
 from drake_lfd.robot.joint_path import JointPathChecker
-from drake_lfd.planning.planner import PLANNERS, PlanResult, plan_task
+from drake_lfd.planning.options import PlanningOptions
+from drake_lfd.planning.planner import PlanResult, plan_composition
 from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan, replan, task_fingerprint
 from drake_lfd.systems.feature_library import LibraryFeatures
@@ -49,9 +50,16 @@ class PlannerSystem(LeafSystem):
     abstract :class:`~drake_lfd.planning.replanning.ScheduledPlan` (None before the
     first plan). A task's ``seed`` (when set) seeds the Q-planner's refinement.
 
+    With ``options.refine`` each executable plan is refined by demonstration-guided
+    trajectory optimization (:func:`drake_lfd.planning.refinement.refine_plan`); a plan
+    the refinement cannot improve stands, with the reason in its ``refinement``.
+
     Parameters
     ----------
-    planner : {"exact", "q"}
+    options : PlanningOptions
+        How to plan: planner, cost, refinement, tolerances, ... (default: those of
+        ``drake-lfd plan``). ``options.refine`` needs ``checker``; ``options.joint_check``
+        is the builder's to honour (it decides whether to give a ``checker``).
     policy : QPolicy, optional
         Needed by the ``q`` planner.
     start_time_s : float
@@ -65,38 +73,27 @@ class PlannerSystem(LeafSystem):
         How often the inputs are compared with the plan's, s; None: only at
         initialization (a Diagram whose plan cannot change during a run, such as the
         compiled closed loop's, then pays no periodic Python event).
-    cost : {"paper", "fidelity"}
-        The action cost the planner minimises (``plan_task``'s ``cost``: Eq. 31, or with
-        the shape-fidelity terms of ``core/fidelity.py``).
-    refine : bool
-        Refine each executable plan by demonstration-guided trajectory optimization
-        (:func:`drake_lfd.planning.refinement.refine_plan`; needs ``checker``); a plan
-        the refinement cannot improve stands, with the reason in its ``refinement``.
     """
 
     def __init__(
         self,
         *,
-        planner: str = "exact",
+        options: PlanningOptions = PlanningOptions(),
         policy: QPolicy | None = None,
         start_time_s: float = 0.0,
         floor_z: float | None = None,
         checker: JointPathChecker | None = None,
         check_period: float | None = 0.05,
-        cost: str = "paper",
-        refine: bool = False,
     ):
         super().__init__()
-        self._cost = check_cost_mode(cost)
-        if refine and checker is None:
+        if not isinstance(options, PlanningOptions):
+            raise TypeError(f"options must be PlanningOptions, got {type(options).__name__}")
+        if options.refine and checker is None:
             raise ValueError("refine needs a checker (the plan-time joint-space check)")
-        self._refine = bool(refine)
-        self._refinement_scene = None  # built on the first refinement, kept for the work cell
-        if planner not in PLANNERS:
-            raise ValueError(f"planner must be one of {PLANNERS}, got {planner!r}")
-        if planner == "q" and policy is None:
+        if options.planner == "q" and policy is None:
             raise ValueError("the q planner needs a policy")
-        self._planner = planner
+        self._options = options
+        self._refinement_scene = None  # built on the first refinement, kept for the work cell
         self._policy = policy
         self._start_time_s = float(start_time_s)
         self._floor_z = floor_z
@@ -123,19 +120,24 @@ class PlannerSystem(LeafSystem):
         return planner
 
     @property
+    def options(self) -> PlanningOptions:
+        """How this system plans."""
+        return self._options
+
+    @property
     def planner(self) -> str:
-        return self._planner
+        return self._options.planner
 
     @property
     def cost(self) -> str:
-        return self._cost
+        return self._options.cost
 
     def plan(self, task: ConcreteTask, library: LibraryFeatures) -> PlanResult:
         """One plan of ``task`` with this system's settings (no state involved)."""
-        result = plan_task(task, library.features, planner=self._planner, policy=self._policy,
-                           seed=0 if task.seed is None else int(task.seed), floor_z=self._floor_z,
-                           checker=self._checker, cost=self._cost)
-        if not (self._refine and result.planned):
+        result = plan_composition(task, library.features, self._options, policy=self._policy,
+                                  seed=0 if task.seed is None else int(task.seed), floor_z=self._floor_z,
+                                  checker=self._checker)
+        if not (self._options.refine and result.planned):
             return result
         from drake_lfd.planning.refinement import OptimizationScene, refine_plan
 
