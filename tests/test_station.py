@@ -1,17 +1,18 @@
 """The station Diagram owns what it uses, names its ports ``ur5e.<quantity>`` and is
 configured by typed dataclasses (``drake_lfd.io.simulation_config``)."""
 
+import dataclasses
 import subprocess
 import sys
 import textwrap
 
 import numpy as np
 import pytest
-from pydrake.systems.analysis import Simulator
+from pydrake.systems.analysis import ExtractSimulatorConfig, Simulator, SimulatorConfig
 
 import drake_lfd.diagrams.station as mut
 from drake_lfd.core.errors import InputError
-from drake_lfd.io.simulation_config import PipelineConfig, StationConfig
+from drake_lfd.io.simulation_config import PipelineConfig, StationConfig, apply_simulator_config
 from drake_lfd.io.task_files import load_task
 
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -np.pi / 2, 0.0])
@@ -148,3 +149,97 @@ def test_a_task_files_simulation_block_configures_the_pipeline(tmp_path):
     with pytest.raises(InputError) as error:
         load_task(path)
     assert error.value.field == "simulation.settle_s"
+
+
+def test_drakes_config_structs_load_from_the_simulation_block_and_reach_the_plant(tmp_path):
+    config = load_task_text(tmp_path, TASK_HEAD + "simulation:\n  station:\n"
+                            "    plant: {time_step: 0.002, penetration_allowance: 0.002}\n"
+                            "    visualization: {publish_period: 0.05}\n"
+                            "  simulator: {target_realtime_rate: 2.0}\n").simulation
+    assert config.station.time_step == 0.002  # the short spelling reads the struct
+    assert config.station.visualizer_publish_period == 0.05
+    station = mut.build_station(config=config.station)
+    assert station.plant.time_step() == 0.002 == station.time_step
+    assert station.plant.get_discrete_contact_approximation().name == "kSap"  # kept from the default
+    simulator = Simulator(station)
+    apply_simulator_config(config.simulator, simulator)
+    assert simulator.get_target_realtime_rate() == 2.0
+
+
+def test_the_default_configs_keep_todays_plant_and_simulator():
+    assert StationConfig().plant.time_step == 1e-3 and PipelineConfig().station.plant.time_step == 5e-3
+    station = mut.build_station()
+    assert station.plant.get_discrete_contact_approximation().name == "kSap"
+    assert not station.plant.has_sampled_output_ports()
+    # The default SimulatorConfig is a fresh Simulator's own: applying it changes nothing.
+    simulator = Simulator(station)
+    before = repr(ExtractSimulatorConfig(simulator))
+    apply_simulator_config(PipelineConfig().simulator, simulator)
+    assert repr(ExtractSimulatorConfig(simulator)) == before == repr(SimulatorConfig())
+
+
+def test_the_short_spellings_and_the_structs_are_one_value():
+    config = StationConfig(time_step=0.004)
+    assert config.plant.time_step == 0.004
+    config.plant.time_step = 0.003
+    assert config.time_step == 0.003
+    copy = dataclasses.replace(config, command_period=0.02)
+    copy.time_step = 0.002
+    assert config.time_step == 0.003  # each config owns its structs
+
+
+@pytest.mark.parametrize("block, field", [
+    ("simulation:\n  station: {plant: {time_stepx: 0.002}}\n", "simulation.station.plant.time_stepx"),
+    ("simulation:\n  station: {plant: {time_step: abc}}\n", "simulation.station.plant.time_step"),
+    ("simulation:\n  station: {plant: {time_step: 0}}\n", "simulation.station.time_step"),
+    ("simulation:\n  station: {plant: {discrete_contact_approximation: tamsi}}\n",
+     "simulation.station.plant.discrete_contact_approximation"),
+    ("simulation:\n  station: {plant: {contact_model: springs}}\n", "simulation.station.plant.contact_model"),
+    ("simulation:\n  station: {visualization: {publish_period: -1}}\n", "simulation.station.visualization.publish_period"),
+    ("simulation:\n  simulator: {integration_scheme: magic}\n", "simulation.simulator.integration_scheme"),
+    ("simulation:\n  simulator: {accuracy: 0}\n", "simulation.simulator.accuracy"),
+])
+def test_bad_drake_config_structs_are_refused_naming_the_field(tmp_path, block, field):
+    with pytest.raises(InputError) as error:
+        load_task_text(tmp_path, TASK_HEAD + block)
+    assert error.value.field == field
+    assert "task.yaml" in str(error.value) and "\n" not in str(error.value)
+
+
+def test_every_plant_output_port_is_exported_with_the_model_prefix():
+    station = mut.build_station()
+    plant = station.plant
+    exported = {station.get_output_port(i).get_name() for i in range(station.num_output_ports())}
+    names = mut.plant_output_port_names(plant, station.model)
+    assert len(names) == plant.num_output_ports()  # one name per port, none lost to a clash
+    assert set(names) <= exported
+    assert all(name.startswith(("ur5e.", "WorldModelInstance.", "DefaultModelInstance.")) for name in names)
+    assert {"ur5e.state", "ur5e.body_poses", "ur5e.contact_results", "ur5e.plant_state",
+            "ur5e.generalized_contact_forces"} <= set(names)
+    assert names["ur5e.state"] is plant.get_state_output_port(station.model)
+    assert names["ur5e.plant_state"] is plant.get_state_output_port()
+    # What the rest of drake-lfd uses keeps its name.
+    assert {"ur5e.position_measured", "ur5e.velocity_measured", "query_object"} <= exported
+    context = station.CreateDefaultContext()
+    station.set_initial_positions(context, Q_HOME)
+    station.GetInputPort("ur5e.position_command").FixValue(context, Q_HOME)
+    poses = station.GetOutputPort("ur5e.body_poses").Eval(context)
+    assert len(poses) == plant.num_bodies()
+
+
+@pytest.mark.parametrize("q", [Q_HOME, np.array([0.3, -0.4, 0.3, -1.0, -1.2, 0.5])])
+def test_an_arm_told_to_hold_still_stays_within_a_tenth_of_a_millimetre(q):
+    # Gravity is off on the arm: nothing pulls it from the held pose (with the arm
+    # nearly outstretched; with gravity on and no compensation the tool sags 8 and 13 mm).
+    from drake_lfd.robot.kinematics import UR5eKinematics
+
+    station = mut.build_station()
+    context = station.CreateDefaultContext()
+    station.set_initial_positions(context, q)
+    station.GetInputPort("ur5e.position_command").FixValue(context, q)
+    Simulator(station, context).AdvanceTo(2.0)
+    q_held = station.GetOutputPort("ur5e.position_measured").Eval(context)
+    kinematics = UR5eKinematics()
+    drift_m = np.linalg.norm(kinematics.X_WE(q_held).translation() - kinematics.X_WE(q).translation())
+    assert drift_m < 1e-4
+    assert np.abs(station.GetOutputPort("ur5e.velocity_measured").Eval(context)).max() < 1e-4

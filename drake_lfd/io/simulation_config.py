@@ -11,14 +11,36 @@ optional ``simulation:`` block, which :mod:`drake_lfd.io.task_files` loads (Drak
       controller: {method: pseudo_inverse, position_gain: 10.0}
       settle_s: 0.3
 
+The plant, the simulator and the visualisation are configured by Drake's own structs,
+loaded the same way and applied with Drake's functions (as the manipulation course's
+scenarios do): ``station.plant`` is a ``MultibodyPlantConfig`` (``ApplyMultibodyPlantConfig``),
+``station.visualization`` a ``VisualizationConfig`` (``ApplyVisualizationConfig``) and
+``simulator`` a ``SimulatorConfig`` (:func:`apply_simulator_config`)::
+
+    simulation:
+      station:
+        plant: {time_step: 0.002, penetration_allowance: 0.002}
+        visualization: {publish_period: 0.05, publish_proximity: true}
+      simulator: {target_realtime_rate: 1.0}
+
+``station.time_step``, ``station.sampled_output_ports`` and
+``station.visualizer_publish_period`` are the older, shorter spellings of
+``station.plant.time_step``, ``station.plant.use_sampled_output_ports`` and
+``station.visualization.publish_period``: the same values, stored once, in the structs.
+
 Not for: building anything (``station.py``, ``pipeline.py``) or the task itself.
 """
 
 # No "from __future__ import annotations": yaml_load_typed needs the real field types.
 
+import copy
 import dataclasses
 import math
 
+from pydrake.multibody.plant import ApplyMultibodyPlantConfig, MultibodyPlant, MultibodyPlantConfig
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
+from pydrake.systems.primitives import ConstantVectorSource
+from pydrake.visualization import VisualizationConfig
 
 from drake_lfd.core.errors import InputError
 
@@ -30,6 +52,9 @@ __all__ = [
     "PlannerSystemConfig",
     "JointCheckConfig",
     "PipelineConfig",
+    "plant_config",
+    "visualization_config",
+    "apply_simulator_config",
     "STATION_TIME_STEP_S",
     "CLOSED_LOOP_TIME_STEP_S",
     "COMPILED_METHOD",
@@ -47,6 +72,106 @@ CLOSED_LOOP_TIME_STEP_S = 5e-3
 # controller with Drake's differential-IK law or the paper's pseudo-inverse (Eq. 35-38).
 COMPILED_METHOD = "compiled"
 CONTROLLER_METHODS = (COMPILED_METHOD, "drake", "pseudo_inverse")
+
+# The discrete contact approximations that support the drive's PD-controlled actuators
+# (with "tamsi", Drake's continuous-era solver, they would silently do nothing).
+PD_CONTACT_APPROXIMATIONS = ("sap", "similar", "lagged")
+
+# The Meshcat frame period of a station (s): 32 frames a second.
+VISUALIZER_PUBLISH_PERIOD_S = 1.0 / 32.0
+
+
+def plant_config(time_step: float = STATION_TIME_STEP_S) -> MultibodyPlantConfig:
+    """The station plant's ``MultibodyPlantConfig``: Drake's defaults but for three.
+
+    - ``time_step``: ``time_step`` (s).
+    - ``discrete_contact_approximation="sap"``: with ``"lagged"`` (Drake's default) or
+      ``"tamsi"`` the PD-controlled actuators of the drive are not supported.
+    - ``use_sampled_output_ports=False``: the plant's step a discrete update, its outputs
+      computed from the current state (``diagrams/station.py``).
+
+    Every other field (contact model, penetration allowance, stiction tolerance, ...)
+    is Drake's default, which is also what a plant made with
+    ``AddMultibodyPlantSceneGraph(builder, time_step)`` has.
+    """
+    return MultibodyPlantConfig(time_step=time_step, discrete_contact_approximation="sap",
+                                use_sampled_output_ports=False)
+
+
+def visualization_config() -> VisualizationConfig:
+    """The station's ``VisualizationConfig``: the illustration geometry only, 32 frames a
+    second.
+
+    Drake's default also publishes the proximity geometry, the contact forces and the
+    inertias; each is one field away (``publish_proximity: true``, ...). Used only when
+    the station is given a Meshcat.
+    """
+    return VisualizationConfig(publish_period=VISUALIZER_PUBLISH_PERIOD_S, publish_proximity=False,
+                               publish_contacts=False, publish_inertia=False)
+
+
+def apply_simulator_config(config: SimulatorConfig, simulator: Simulator) -> None:
+    """Applies ``config`` to ``simulator`` (Drake's ``ApplySimulatorConfig``).
+
+    The default ``SimulatorConfig()`` is exactly the state of a freshly made
+    ``Simulator`` (RK3 integrator, 0.1 s largest step, accuracy 1e-4 with error control,
+    no real-time pacing, no publish at every step), so applying it changes nothing.
+    """
+    ApplySimulatorConfig(config, simulator)
+
+
+class _OwnedStruct:
+    """A dataclass field holding a Drake config struct that the instance owns.
+
+    Every value set (by the constructor, an assignment or the YAML loader) is stored as a
+    deep copy, so no two configs share a struct and writing through one of the short
+    spellings (:class:`_StructField`) never changes another config. The default is
+    ``factory()``.
+    """
+
+    def __init__(self, factory):
+        self._factory = factory
+
+    def __set_name__(self, owner, name):
+        self._slot = f"_{name}"
+
+    def __get__(self, instance, owner=None):
+        if instance is None:
+            return self._factory()  # the dataclass default; copied when set
+        return instance.__dict__[self._slot]
+
+    def __set__(self, instance, value):
+        instance.__dict__[self._slot] = copy.deepcopy(value)
+
+
+class _StructField:
+    """A dataclass field that is another name for an attribute of a Drake config struct.
+
+    ``StationConfig.time_step`` reads and writes ``StationConfig.plant.time_step``: a
+    value set through either spelling (constructor keyword, attribute, YAML key) is the
+    one value the station uses. The field's default (None) leaves the struct's value.
+    """
+
+    def __init__(self, struct: str, attribute: str):
+        self._struct = struct
+        self._attribute = attribute
+
+    def __set_name__(self, owner, name):
+        self._name = name
+
+    def __get__(self, instance, owner=None):
+        if instance is None:
+            return None  # the dataclass default: keep the struct's value
+        return getattr(getattr(instance, self._struct), self._attribute)
+
+    def __set__(self, instance, value):
+        if value is not None:
+            setattr(getattr(instance, self._struct), self._attribute, value)
+
+
+def _struct_fields(struct) -> tuple:
+    """The values of a Drake config struct's serialized fields, for comparisons."""
+    return tuple((field.name, repr(getattr(struct, field.name))) for field in type(struct).__fields__)
 
 
 @dataclasses.dataclass
@@ -71,34 +196,54 @@ class DriveConfig:
     gear_ratio: float = 101.0
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(eq=False)
 class StationConfig:
-    """The station: plant step, drive, command sampling, visualisation.
+    """The station: plant, drive, command sampling, visualisation.
 
     Attributes
     ----------
+    plant : pydrake.multibody.plant.MultibodyPlantConfig
+        The plant (Drake's struct, applied with ``ApplyMultibodyPlantConfig``); see
+        :func:`plant_config` for the defaults.
+    visualization : pydrake.visualization.VisualizationConfig
+        What a Meshcat given to the station shows (Drake's struct, applied with
+        ``ApplyVisualizationConfig``); see :func:`visualization_config`.
     time_step : float
-        The discrete plant's step, s.
+        The discrete plant's step, s: ``plant.time_step``.
     command_period : float
         Period at which the drive samples the position command, s; match the rate of
         whatever produces it (the differential-IK period).
     drive : DriveConfig
     visualizer_publish_period : float
-        Meshcat frame period, s (when a Meshcat is given).
+        Meshcat frame period, s: ``visualization.publish_period``.
     model_name : str
         Robot model instance name and prefix of the exported ports.
     sampled_output_ports : bool
         Drake's sampled output ports for the plant (its step an unrestricted update);
         off: the step is a discrete update and the outputs follow the current state
-        (``station.py``).
+        (``station.py``). ``plant.use_sampled_output_ports``.
+
+    ``time_step``, ``visualizer_publish_period`` and ``sampled_output_ports`` are stored
+    in the structs; given with the struct to the constructor, they win.
     """
 
-    time_step: float = STATION_TIME_STEP_S
+    # The structs come first: the constructor sets them before their short spellings.
+    plant: MultibodyPlantConfig = _OwnedStruct(plant_config)
+    visualization: VisualizationConfig = _OwnedStruct(visualization_config)
+    time_step: float = _StructField("plant", "time_step")
     command_period: float = 0.01
     drive: DriveConfig = dataclasses.field(default_factory=DriveConfig)
-    visualizer_publish_period: float = 1.0 / 32.0
+    visualizer_publish_period: float = _StructField("visualization", "publish_period")
     model_name: str = "ur5e"
-    sampled_output_ports: bool = False
+    sampled_output_ports: bool = _StructField("plant", "use_sampled_output_ports")
+
+    def __eq__(self, other):
+        if not isinstance(other, StationConfig):
+            return NotImplemented
+        return (_struct_fields(self.plant) == _struct_fields(other.plant)
+                and _struct_fields(self.visualization) == _struct_fields(other.visualization)
+                and (self.command_period, self.drive, self.model_name)
+                == (other.command_period, other.drive, other.model_name))
 
 
 @dataclasses.dataclass
@@ -176,7 +321,7 @@ class JointCheckConfig:
     clearance_m: float = 0.01
 
 
-@dataclasses.dataclass
+@dataclasses.dataclass(eq=False)
 class PipelineConfig:
     """Everything a closed-loop run is configured by.
 
@@ -184,6 +329,9 @@ class PipelineConfig:
     ----------
     station : StationConfig
         Its ``time_step`` defaults to the closed-loop step (5 ms) here.
+    simulator : pydrake.systems.analysis.SimulatorConfig
+        The run's Simulator (Drake's struct; :func:`apply_simulator_config`). The default
+        is a fresh Simulator's own settings.
     controller : ControllerConfig
     monitor : MonitorConfig
     planner : PlannerSystemConfig
@@ -195,12 +343,21 @@ class PipelineConfig:
 
     station: StationConfig = dataclasses.field(
         default_factory=lambda: StationConfig(time_step=CLOSED_LOOP_TIME_STEP_S))
+    simulator: SimulatorConfig = _OwnedStruct(SimulatorConfig)
     controller: ControllerConfig = dataclasses.field(default_factory=ControllerConfig)
     monitor: MonitorConfig = dataclasses.field(default_factory=MonitorConfig)
     planner: PlannerSystemConfig = dataclasses.field(default_factory=PlannerSystemConfig)
     joint_check: JointCheckConfig = dataclasses.field(default_factory=JointCheckConfig)
     log_period: float = 0.01
     settle_s: float = 0.5
+
+    def __eq__(self, other):
+        if not isinstance(other, PipelineConfig):
+            return NotImplemented
+        return all(
+            (_struct_fields(getattr(self, f.name)) == _struct_fields(getattr(other, f.name)))
+            if f.name == "simulator" else getattr(self, f.name) == getattr(other, f.name)
+            for f in dataclasses.fields(self))
 
     def checked(self, *, file: str | None = None) -> "PipelineConfig":
         """Itself after range checks (positive periods, six gains, known method), with
@@ -211,6 +368,8 @@ class PipelineConfig:
                                  field=f"simulation.{field}")
 
         positive(self.station.time_step, "station.time_step")
+        _check_plant_config(self.station.plant, file)
+        _check_simulator_config(self.simulator, file)
         positive(self.controller.time_step, "controller.time_step")
         positive(self.monitor.period, "monitor.period")
         positive(self.planner.check_period, "planner.check_period")
@@ -225,7 +384,7 @@ class PipelineConfig:
                 raise InputError(f"must be a finite number >= 0, got {value!r}", file=file,
                                  field=f"simulation.joint_check.{name}")
         positive(self.log_period, "log_period")
-        positive(self.station.visualizer_publish_period, "station.visualizer_publish_period")
+        positive(self.station.visualizer_publish_period, "station.visualization.publish_period")
         positive(self.station.drive.gear_ratio, "station.drive.gear_ratio")
         if not (math.isfinite(self.settle_s) and self.settle_s >= 0):
             raise InputError(f"must be a finite number >= 0, got {self.settle_s!r}", file=file,
@@ -244,3 +403,53 @@ class PipelineConfig:
                                  field=f"simulation.station.drive.{name}")
         return dataclasses.replace(
             self, station=dataclasses.replace(self.station, command_period=self.controller.time_step))
+
+
+
+def _first_line(error: Exception) -> str:
+    return str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+
+
+def _check_plant_config(config: MultibodyPlantConfig, file) -> None:
+    """Raises InputError unless Drake accepts ``config`` for the station's plant.
+
+    The strings Drake knows (contact model, surface representation) are judged by Drake:
+    applied, one at a time, to a throwaway plant.
+    """
+    if config.discrete_contact_approximation not in PD_CONTACT_APPROXIMATIONS:
+        raise InputError(
+            f"must be one of {', '.join(repr(a) for a in PD_CONTACT_APPROXIMATIONS)} (the drive's PD-controlled "
+            f"actuators need SAP), got {config.discrete_contact_approximation!r}",
+            file=file, field="simulation.station.plant.discrete_contact_approximation")
+    for name in ("penetration_allowance", "stiction_tolerance", "sap_near_rigid_threshold"):
+        value = getattr(config, name)
+        if not (math.isfinite(value) and value >= 0):
+            raise InputError(f"must be a finite number >= 0, got {value!r}", file=file,
+                             field=f"simulation.station.plant.{name}")
+    for name in ("contact_model", "contact_surface_representation"):
+        trial = plant_config()
+        setattr(trial, name, getattr(config, name))
+        try:
+            ApplyMultibodyPlantConfig(trial, MultibodyPlant(trial.time_step))
+        except Exception as error:  # Drake's own message names the accepted values
+            raise InputError(_first_line(error), file=file, field=f"simulation.station.plant.{name}") from None
+
+
+def _check_simulator_config(config: SimulatorConfig, file) -> None:
+    """Raises InputError unless Drake accepts ``config`` for a Simulator (the integration
+    scheme judged by Drake, on a throwaway one)."""
+    for name in ("max_step_size", "accuracy"):
+        value = getattr(config, name)
+        if not (math.isfinite(value) and value > 0):
+            raise InputError(f"must be a finite number > 0, got {value!r}", file=file,
+                             field=f"simulation.simulator.{name}")
+    for name in ("start_time", "target_realtime_rate"):
+        value = getattr(config, name)
+        if not (math.isfinite(value) and value >= 0):
+            raise InputError(f"must be a finite number >= 0, got {value!r}", file=file,
+                             field=f"simulation.simulator.{name}")
+    trial = SimulatorConfig(integration_scheme=config.integration_scheme)
+    try:
+        ApplySimulatorConfig(trial, Simulator(ConstantVectorSource([0.0])))
+    except Exception as error:
+        raise InputError(_first_line(error), file=file, field="simulation.simulator.integration_scheme") from None

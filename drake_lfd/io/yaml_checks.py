@@ -390,6 +390,26 @@ def check_schema(value, schema, path, file, expected=None):
                 )
             check_schema(item, item_schema, _join(path, key), file)
         return
+    if schema is np.ndarray:  # a vector in one of Drake's structs (Rgba's rgba)
+        if not isinstance(value, list) or not all(_matches_scalar(item, float) for item in value):
+            raise InputError(f"expected a list of numbers, got {kind_of(value)}", file=file, field=path)
+        return
+    drake_fields = None if dataclasses.is_dataclass(schema) else getattr(schema, "__fields__", None)
+    if drake_fields is not None:
+        # One of Drake's config structs bound with DefAttributesUsingSerialize
+        # (MultibodyPlantConfig, SimulatorConfig, VisualizationConfig, Rgba): every field
+        # optional, none with metadata.
+        if not isinstance(value, dict):
+            raise InputError(f"expected a mapping, got {kind_of(value)}", file=file, field=path or None)
+        hints = {field.name: field.type for field in drake_fields}
+        for key in value:
+            if not isinstance(key, str):
+                raise InputError(f"key {kind_of(key)} is not a name; quote it", file=file, field=path or None)
+            if key not in hints:
+                raise InputError(f"unknown key {key!r} (allowed: {', '.join(hints)})", file=file,
+                                 field=_join(path, key))
+            check_schema(value[key], hints[key], _join(path, key), file)
+        return
     if dataclasses.is_dataclass(schema):
         if not isinstance(value, dict):
             raise InputError(f"expected a mapping, got {kind_of(value)}", file=file, field=path or None)
