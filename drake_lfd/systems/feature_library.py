@@ -74,7 +74,7 @@ class LibraryFeatures:
         return self  # immutable: Drake's copies of a Context share it
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class AddedDemonstrations:
     """The demonstrations a :class:`FeatureLibrarySystem` added during a run, in order
     (its abstract state; immutable, so Drake's copies of a Context share it).
