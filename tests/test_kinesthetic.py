@@ -207,21 +207,25 @@ def test_demo_recorder_alone_samples_at_the_rtde_rate(tmp_path):
     q = np.array([0.1, -1.2, 1.3, -1.4, -1.5, 0.6])
     dut.get_input_port().FixValue(context, q)
     simulator.AdvanceTo(0.1)
-    assert dut.num_samples == 51
-    np.testing.assert_allclose(dut.timestamps(), np.arange(51) * 0.002, atol=1e-12)
-    np.testing.assert_array_equal(dut.joint_positions(), np.tile(q, (51, 1)))
+    assert dut.num_samples(context) == 50  # the update at t = 0.1 starts the next step
+    simulator.AdvancePendingEvents()
+    simulator.AdvancePendingEvents()  # a repeated time adds nothing
+    assert dut.num_samples(context) == 51
+    recorded = dut.demonstration(context, "still")
+    np.testing.assert_allclose(recorded.timestamps, np.arange(51) * 0.002, atol=1e-12)
+    np.testing.assert_array_equal(recorded.joint_positions, np.tile(q, (51, 1)))
     path = tmp_path / "log.csv"
-    dut.write_csv(path, name="still")
+    dut.write_csv(context, path, name="still")
     lines = path.read_text().splitlines()
     assert lines[0] == "timestamp,actual_q_0,actual_q_1,actual_q_2,actual_q_3,actual_q_4,actual_q_5"
     assert len(lines) == 52
     demonstration, warnings = read_rtde_csv(path)
     assert warnings == ()
-    np.testing.assert_array_equal(demonstration.joint_positions, dut.joint_positions())
-    np.testing.assert_array_equal(demonstration.timestamps, dut.timestamps())
+    np.testing.assert_array_equal(demonstration.joint_positions, recorded.joint_positions)
+    np.testing.assert_array_equal(demonstration.timestamps, recorded.timestamps)
     assert not list(tmp_path.glob(".*.tmp"))  # the temporary file was renamed away
-    dut.clear()
-    assert dut.num_samples == 0
+    dut.SetDefaultContext(context)  # a reset Context holds no samples
+    assert dut.num_samples(context) == 0
 
 
 # ----------------------------------------------------------------------- drake-lfd record

@@ -18,7 +18,8 @@ controller logs the joints over RTDE. This module does the same in Drake:
   wobble of about a millimetre and half a degree, and a slightly uneven pace), then held
   still at the last waypoint so the arm settles (:class:`~drake_lfd.core.guidance.GuidancePath`);
 - a :class:`~drake_lfd.systems.demo_recorder.DemoRecorder` samples the measured joints at
-  the RTDE rate (500 Hz) into an RTDE-style CSV.
+  the RTDE rate (500 Hz) into its state in the Context; :func:`record_demonstration`
+  returns them as a demonstration (``drake-lfd record`` writes it as an RTDE-style CSV).
 
 The arm starts at rest at the inverse-kinematics solution of the first waypoint with an
 elbow-up preference (:func:`initial_joint_positions`, from ``initial_ik.py``). Nothing
@@ -261,7 +262,10 @@ def record_demonstration(
         simulator.AdvanceTo(t)
         if progress is not None:
             progress(t, duration)
-    demonstration = setup.recorder.demonstration(script.name, script.description)
+    # The recorder samples in update events, which Drake applies when a step starts:
+    # the sample at the end time is pending until this.
+    simulator.AdvancePendingEvents()
+    demonstration = setup.recorder.demonstration(simulator.get_context(), script.name, script.description)
 
     kinematics = UR5eKinematics(X_WB=script.X_WB, X_tool0_E=script.X_tool0_E)
     D_measured = dual_quaternion_from_matrices(kinematics.X_WE_batch(demonstration.joint_positions))

@@ -80,7 +80,7 @@ from drake_lfd.systems.feature_library import FeatureLibrarySystem
 from drake_lfd.systems.joint_path_source import JointPathSource
 from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryController, law_for_plant
 from drake_lfd.systems.plan_trajectory_source import PlanTrajectorySource
-from drake_lfd.systems.planner import PlannerSystem
+from drake_lfd.systems.planner import NO_PLAN, PlannerSystem
 from drake_lfd.systems.shell_monitor import ShellMonitor
 from drake_lfd.systems.trial_end import TrialEnd, plan_end_time_s
 
@@ -461,7 +461,7 @@ class Pipeline(Diagram):
         :func:`~drake_lfd.diagrams.judging.judge_run`, the trial's path constraints
         included); a trial with nothing planned fails with the planner's reasons."""
         scheduled = self.plan_output_port.Eval(context)
-        if scheduled is None:
+        if scheduled is None or scheduled is NO_PLAN or scheduled.result.status == NO_PLAN.result.status:
             return RunJudgement(False, ["nothing planned"])
         plan = scheduled.result
         if plan.status == "no_executable_plan":

@@ -6,8 +6,10 @@ record. An optional input takes a newly recorded demonstration (for example from
 :class:`~drake_lfd.systems.demo_recorder.DemoRecorder`): when a demonstration with a new
 name arrives, its feature is computed (UR5e forward kinematics with the library's tool
 frame, arc-length resampling) and added, and the record's ``revision`` goes up, so a
-planner downstream can plan again. Optionally the demonstration is also written to a
-library directory (atomically, as ``drake-lfd library add`` does).
+planner downstream can plan again. The demonstrations added during a run live in the
+system's abstract state too (every Context has its own); no event writes a file:
+after the simulation, :meth:`FeatureLibrarySystem.write_added_demonstrations` adds them
+to a library directory (atomically, as ``drake-lfd library add`` does).
 
 Not for: reading or writing library files (``io/library.py``) or the feature math
 (``core/features.py``).
@@ -23,13 +25,14 @@ from typing import Mapping
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
-from pydrake.systems.framework import DiagramBuilder, EventStatus, LeafSystem, OutputPort
+from pydrake.systems.framework import Context, DiagramBuilder, EventStatus, LeafSystem, OutputPort
 
 from drake_lfd.core.demonstrations import Demonstration
 from drake_lfd.core.features import DEFAULT_NUM_SAMPLES, DEFAULT_ROTATION_LENGTH_M, Feature
 from drake_lfd.robot.kinematics import UR5eKinematics, dual_quaternions_from_demonstration
+from drake_lfd.systems.demo_recorder import NO_DEMONSTRATION
 
-__all__ = ["LibraryFeatures", "FeatureLibrarySystem"]
+__all__ = ["LibraryFeatures", "AddedDemonstrations", "FeatureLibrarySystem"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -71,6 +74,22 @@ class LibraryFeatures:
         return self  # immutable: Drake's copies of a Context share it
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class AddedDemonstrations:
+    """The demonstrations a :class:`FeatureLibrarySystem` added during a run, in order
+    (its abstract state; immutable, so Drake's copies of a Context share it).
+
+    Attributes
+    ----------
+    demonstrations : tuple[Demonstration, ...]
+    """
+
+    demonstrations: tuple = ()
+
+    def __deepcopy__(self, memo):
+        return self
+
+
 class FeatureLibrarySystem(LeafSystem):
     """The features of a library, and the demonstrations added during a run.
 
@@ -84,9 +103,13 @@ class FeatureLibrarySystem(LeafSystem):
 
     ``library`` is an abstract :class:`LibraryFeatures`. ``demonstration`` (declared when
     ``accept_demonstrations`` is True; may stay unconnected) is an abstract
-    :class:`~drake_lfd.core.demonstrations.Demonstration` or None; it is read every
-    ``check_period`` s and a demonstration whose name the library does not have yet is
-    added.
+    :class:`~drake_lfd.core.demonstrations.Demonstration`
+    (:data:`~drake_lfd.systems.demo_recorder.NO_DEMONSTRATION`, or any of fewer than 2
+    samples, stands for none yet); it is read every ``check_period`` s and a
+    demonstration whose name the library does not have yet is added: its feature to the
+    ``library`` output, the demonstration itself to the :class:`AddedDemonstrations` in
+    the Context (:meth:`added_demonstrations`, written to a library directory after the
+    run by :meth:`write_added_demonstrations`).
 
     Parameters
     ----------
@@ -99,8 +122,6 @@ class FeatureLibrarySystem(LeafSystem):
         s.
     num_samples, rotation_length_m :
         Feature resampling of added demonstrations (the library's settings).
-    library : drake_lfd.io.library.Library, optional
-        Also add each new demonstration to this library directory.
     """
 
     def __init__(
@@ -112,21 +133,20 @@ class FeatureLibrarySystem(LeafSystem):
         check_period: float = 0.05,
         num_samples: int = DEFAULT_NUM_SAMPLES,
         rotation_length_m: float = DEFAULT_ROTATION_LENGTH_M,
-        library=None,
     ):
         super().__init__()
         self._X_tool0_E = RigidTransform() if X_tool0_E is None else RigidTransform(X_tool0_E)
         self._num_samples = int(num_samples)
         self._rotation_length_m = float(rotation_length_m)
-        self._library = library
         self._kinematics = None  # built on the first added demonstration
         initial = LibraryFeatures(types.MappingProxyType(dict(features)), 0, self._X_tool0_E)
         self._state_index = self.DeclareAbstractState(AbstractValue.Make(initial))
         self.library_output_port = self.DeclareStateOutputPort("library", self._state_index)
+        self._added_index = self.DeclareAbstractState(AbstractValue.Make(AddedDemonstrations()))
         self.demonstration_input_port = None
         if accept_demonstrations:
             self.demonstration_input_port = self.DeclareAbstractInputPort(
-                "demonstration", AbstractValue.Make(object()))
+                "demonstration", AbstractValue.Make(NO_DEMONSTRATION))
             self.DeclarePeriodicUnrestrictedUpdateEvent(check_period, 0.0, self._add_new_demonstration)
 
     @staticmethod
@@ -152,15 +172,48 @@ class FeatureLibrarySystem(LeafSystem):
         if not port.HasValue(context):
             return EventStatus.DidNothing()
         demonstration = port.Eval(context)
-        if not isinstance(demonstration, Demonstration):
+        if demonstration.num_samples < 2:  # NO_DEMONSTRATION: nothing recorded yet
             return EventStatus.DidNothing()
         current = context.get_abstract_state(self._state_index).get_value()
         if demonstration.name in current.features:
             return EventStatus.DidNothing()
         features = dict(current.features)
         features[demonstration.name] = self.feature_of(demonstration)
-        if self._library is not None:
-            self._library.add(demonstration, demonstration.name, demonstration.description)
+        added = context.get_abstract_state(self._added_index).get_value()
         state.get_mutable_abstract_state(self._state_index).set_value(
             LibraryFeatures(types.MappingProxyType(features), current.revision + 1, self._X_tool0_E))
+        state.get_mutable_abstract_state(self._added_index).set_value(
+            AddedDemonstrations(added.demonstrations + (demonstration,)))
         return EventStatus.Succeeded()
+
+    def added_demonstrations(self, context: Context) -> tuple[Demonstration, ...]:
+        """The demonstrations added during the run of ``context`` (this system's Context
+        or its Diagram's root Context), in order."""
+        try:
+            self.ValidateContext(context)
+        except RuntimeError:
+            context = self.GetMyContextFromRoot(context)
+        return context.get_abstract_state(self._added_index).get_value().demonstrations
+
+    def write_added_demonstrations(self, context: Context, library) -> tuple[str, ...]:
+        """Adds the demonstrations added during the run of ``context`` to ``library``
+        (a :class:`~drake_lfd.io.library.Library`, with :meth:`Library.add
+        <drake_lfd.io.library.Library.add>`: atomic files under the library's lock) and
+        returns their names; those the library already has are skipped. Call it after
+        the simulation.
+
+        Raises
+        ------
+        InputError
+            As ``Library.add`` (read-only library, an implausible demonstration); the
+            demonstrations before it are written.
+        """
+        have = {name.lower() for name in library.names}
+        written = []
+        for demonstration in self.added_demonstrations(context):
+            if demonstration.name.lower() in have:
+                continue
+            library.add(demonstration, demonstration.name, demonstration.description)
+            have.add(demonstration.name.lower())
+            written.append(demonstration.name)
+        return tuple(written)

@@ -23,6 +23,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import EventStatus, LeafSystem, ValueProducer
 
 from drake_lfd.planning.replanning import ScheduledPlan
+from drake_lfd.systems.planner import NO_PLAN
 from drake_lfd.robot.differential_ik_law import DifferentialIKLaw
 from drake_lfd.systems.joint_trajectory_controller import (
     CHUNK_SAMPLES, chunk_size, feed_forward_samples, joint_path_of_plan,
@@ -67,7 +68,7 @@ class JointPathSource(LeafSystem):
         self._lead_s = float(lead_s)
         self._samples = int(chunk_samples)
         n = self._num_joints = 6
-        self.plan_input_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(object()))
+        self.plan_input_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(NO_PLAN))
         self.q_measured_input_port = self.DeclareVectorInputPort("q_measured", n)
         # The run's start: q_0, latched at initialization.
         self._start_index = self.DeclareDiscreteState(n)

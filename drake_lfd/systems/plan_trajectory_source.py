@@ -18,6 +18,7 @@ from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
 
 from drake_lfd.planning.replanning import ScheduledPlan
+from drake_lfd.systems.planner import NO_PLAN
 
 __all__ = ["PlanTrajectorySource"]
 
@@ -36,13 +37,13 @@ class PlanTrajectorySource(LeafSystem):
 
     ``plan`` is an abstract :class:`~drake_lfd.planning.replanning.ScheduledPlan` (a
     demonstration request, which has no motion, holds the identity pose at zero
-    velocity). ``X_WE_desired`` is an abstract ``RigidTransform``; ``V_WE_desired`` is
+    velocity; so does :data:`~drake_lfd.systems.planner.NO_PLAN`). ``X_WE_desired`` is an abstract ``RigidTransform``; ``V_WE_desired`` is
     the spatial velocity of E in W, shape (6,), ``[omega_WE, v_WE]`` (angular first).
     """
 
     def __init__(self):
         super().__init__()
-        self.plan_input_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(object()))
+        self.plan_input_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(NO_PLAN))
         self.X_WE_desired_output_port = self.DeclareAbstractOutputPort(
             "X_WE_desired", lambda: AbstractValue.Make(RigidTransform()), self._calc_pose,
             prerequisites_of_calc={self.time_ticket(), self.plan_input_port.ticket()},

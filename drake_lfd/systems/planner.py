@@ -18,7 +18,9 @@ Not for: the planning itself (``planning/``) or following the plan
 from __future__ import annotations
 
 import dataclasses
+import types
 
+import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, DiagramBuilder, EventStatus, LeafSystem, OutputPort
 
@@ -30,7 +32,17 @@ from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan, replan, task_fingerprint
 from drake_lfd.systems.feature_library import LibraryFeatures
 
-__all__ = ["PlannerSystem"]
+__all__ = ["NO_PLAN", "PlannerSystem"]
+
+#: The ``plan`` a :class:`PlannerSystem` puts out before its first plan (a Context not
+#: initialized yet): a :class:`~drake_lfd.planning.replanning.ScheduledPlan`, so the
+#: port is typed ``ScheduledPlan`` throughout, whose result (status ``"no_plan"``, for
+#: an empty task) has no motion. :meth:`PlannerSystem.scheduled_plan` reads it as None.
+NO_PLAN = ScheduledPlan(PlanResult(status="no_plan", planner="none", task=ConcreteTask("", ()),
+                                   euler_zyx=np.zeros((0, 3))))
+# The model values of the typed input ports (never put out).
+_TASK_MODEL = ConcreteTask("", ())
+_LIBRARY_MODEL = LibraryFeatures(types.MappingProxyType({}))
 
 
 class PlannerSystem(LeafSystem):
@@ -47,8 +59,8 @@ class PlannerSystem(LeafSystem):
 
     ``task`` is an abstract :class:`~drake_lfd.core.tasks.ConcreteTask`; ``library`` an
     abstract :class:`~drake_lfd.systems.feature_library.LibraryFeatures`; ``plan`` an
-    abstract :class:`~drake_lfd.planning.replanning.ScheduledPlan` (None before the
-    first plan). A task's ``seed`` (when set) seeds the Q-planner's refinement.
+    abstract :class:`~drake_lfd.planning.replanning.ScheduledPlan` (:data:`NO_PLAN`
+    before the first plan). A task's ``seed`` (when set) seeds the Q-planner's refinement.
 
     With ``options.refine`` each executable plan is refined by demonstration-guided
     trajectory optimization (:func:`drake_lfd.planning.refinement.refine_plan`); a plan
@@ -99,9 +111,9 @@ class PlannerSystem(LeafSystem):
         self._floor_z = floor_z
         self._checker = checker
         self._last_plan: tuple | None = None  # (inputs' key, PlanResult) of the last first plan
-        self.task_input_port = self.DeclareAbstractInputPort("task", AbstractValue.Make(object()))
-        self.library_input_port = self.DeclareAbstractInputPort("library", AbstractValue.Make(object()))
-        self._state_index = self.DeclareAbstractState(AbstractValue.Make(object()))
+        self.task_input_port = self.DeclareAbstractInputPort("task", AbstractValue.Make(_TASK_MODEL))
+        self.library_input_port = self.DeclareAbstractInputPort("library", AbstractValue.Make(_LIBRARY_MODEL))
+        self._state_index = self.DeclareAbstractState(AbstractValue.Make(NO_PLAN))
         self.plan_output_port = self.DeclareStateOutputPort("plan", self._state_index)
         self.DeclareInitializationUnrestrictedUpdateEvent(self._update)
         if check_period is not None:
@@ -148,7 +160,7 @@ class PlannerSystem(LeafSystem):
     def scheduled_plan(self, context: Context) -> ScheduledPlan | None:
         """The plan in ``context`` (this system's), or None before the first."""
         value = context.get_abstract_state(self._state_index).get_value()
-        return value if isinstance(value, ScheduledPlan) else None
+        return None if value is NO_PLAN else value
 
     def next_plan(self, context: Context) -> ScheduledPlan | None:
         """The plan for the inputs in ``context``: the current one when nothing changed,
@@ -187,7 +199,7 @@ class PlannerSystem(LeafSystem):
         to place the robot at the plan's start); initialization then keeps it."""
         context = self.GetMyMutableContextFromRoot(root_context)
         plan = self.next_plan(context)
-        context.get_mutable_abstract_state(self._state_index).set_value(plan)
+        context.get_mutable_abstract_state(self._state_index).set_value(NO_PLAN if plan is None else plan)
         return plan
 
     def _update(self, context, state):

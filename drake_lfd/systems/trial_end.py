@@ -17,6 +17,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import EventStatus, LeafSystem
 
 from drake_lfd.planning.replanning import ScheduledPlan
+from drake_lfd.systems.planner import NO_PLAN
 
 __all__ = ["TrialEnd", "plan_end_time_s"]
 
@@ -54,7 +55,7 @@ class TrialEnd(LeafSystem):
         if not period > 0.0:
             raise ValueError(f"period must be > 0, got {period!r}")
         self._period = float(period)
-        self.plan_input_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(object()))
+        self.plan_input_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(NO_PLAN))
         self.DeclarePeriodicPublishEvent(period_sec=self._period, offset_sec=0.0, publish=self._check)
 
     @staticmethod
