@@ -53,7 +53,8 @@ def recorder_diagram():
     adder = builder.AddSystem(Adder(2, 6))
     builder.Connect(source.get_output_port(), adder.get_input_port(0))
     builder.ExportInput(adder.get_input_port(1), "offset")
-    recorder = DemoRecorder.AddToBuilder(builder, adder.get_output_port(), rate_hz=RATE_HZ)
+    recorder = DemoRecorder.AddToBuilder(
+        builder=builder, measured_position_output_port=adder.get_output_port(), rate_hz=RATE_HZ)
     logger = add_joint_logger(builder, adder.get_output_port(), rate_hz=RATE_HZ)
     return builder.Build(), recorder, logger
 
@@ -114,8 +115,8 @@ def test_the_demonstration_port_is_empty_until_the_finish_time_then_stays():
     builder = DiagramBuilder()
     times = np.array([0.0, 1.0])
     source = builder.AddSystem(TrajectorySource(PiecewisePolynomial.FirstOrderHold(times, ramp(times).T)))
-    recorder = DemoRecorder.AddToBuilder(builder, source.get_output_port(), rate_hz=100.0, finish_time_s=0.05,
-                                         demo_name="short", description="a ramp")
+    recorder = DemoRecorder.AddToBuilder(builder=builder, measured_position_output_port=source.get_output_port(),
+                                         rate_hz=100.0, finish_time_s=0.05, demo_name="short", description="a ramp")
     diagram = builder.Build()
     simulator = Simulator(diagram)
     simulator.Initialize()
@@ -178,7 +179,8 @@ def test_miswired_abstract_ports_raise_at_connect():
     builder = DiagramBuilder()
     times = np.array([0.0, 1.0])
     source = builder.AddSystem(TrajectorySource(PiecewisePolynomial.FirstOrderHold(times, ramp(times).T)))
-    recorder = DemoRecorder.AddToBuilder(builder, source.get_output_port())
+    recorder = DemoRecorder.AddToBuilder(
+        builder=builder, measured_position_output_port=source.get_output_port())
     planner = builder.AddSystem(PlannerSystem())
     trajectory = builder.AddSystem(PlanTrajectorySource())
     task = builder.AddSystem(ConstantValueSource(AbstractValue.Make(ConcreteTask("t", ()))))
@@ -223,8 +225,9 @@ def test_the_feature_library_writes_no_file_while_simulating(tmp_path, monkeypat
     t = span.timestamps - span.timestamps[0]
     builder = DiagramBuilder()
     replay = builder.AddSystem(TrajectorySource(PiecewisePolynomial.FirstOrderHold(t, span.joint_positions.T)))
-    recorder = DemoRecorder.AddToBuilder(builder, replay.get_output_port(), finish_time_s=float(t[-1]),
-                                         demo_name="span", description="the span", rate_hz=125.0)
+    recorder = DemoRecorder.AddToBuilder(builder=builder, measured_position_output_port=replay.get_output_port(),
+                                         finish_time_s=float(t[-1]), demo_name="span", description="the span",
+                                         rate_hz=125.0)
     dut = FeatureLibrarySystem.AddToBuilder(
         builder=builder, features=library_features(paper5), X_tool0_E=paper5.X_tool0_E,
         demonstration_output_port=recorder.demonstration_output_port, check_period=0.1)

@@ -114,8 +114,8 @@ def test_record_library_plan_in_one_diagram():
     builder = DiagramBuilder()
     # The recorded joints stand for the guided arm's measured positions.
     replay = builder.AddSystem(TrajectorySource(PiecewisePolynomial.FirstOrderHold(t, span.joint_positions.T)))
-    recorder = DemoRecorder.AddToBuilder(builder, replay.get_output_port(), finish_time_s=float(t[-1]),
-                                         demo_name="span", rate_hz=125.0)
+    recorder = DemoRecorder.AddToBuilder(builder=builder, measured_position_output_port=replay.get_output_port(),
+                                         finish_time_s=float(t[-1]), demo_name="span", rate_hz=125.0)
     library_system = FeatureLibrarySystem.AddToBuilder(
         builder=builder, features=features, X_tool0_E=library.X_tool0_E,
         demonstration_output_port=recorder.demonstration_output_port, check_period=0.1)

@@ -182,9 +182,8 @@ def make_kinesthetic_diagram(
     positions = builder.AddSystem(Demultiplexer([NUM_JOINTS, NUM_JOINTS]))
     positions.set_name("measured_position")
     builder.Connect(plant.get_state_output_port(model), positions.get_input_port())
-    recorder = DemoRecorder.AddToBuilder(
-        builder, positions.get_output_port(0), num_joints=NUM_JOINTS, rate_hz=script.sample_rate_hz
-    )
+    recorder = DemoRecorder.AddToBuilder(builder=builder, measured_position_output_port=positions.get_output_port(0),
+                                         num_joints=NUM_JOINTS, rate_hz=script.sample_rate_hz)
     diagram = builder.Build()
     diagram.set_name(f"kinesthetic_{script.name}")
     return KinestheticSetup(diagram, plant, model, hand, recorder, guidance, q_initial, kinematics_plant)

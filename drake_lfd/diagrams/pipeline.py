@@ -238,22 +238,28 @@ class Pipeline(Diagram):
         self.table: Box | None = workcell.table
         floor_z = workcell.planner_floor
 
+        # Pipeline order: each stage added with its AddToBuilder, which connects its inputs.
         builder = DiagramBuilder()
-        station = builder.AddNamedSystem("station", Station(
-            workcell=workcell, meshcat=meshcat, config=config.station))
+        station = Station.AddToBuilder(builder=builder, workcell=workcell, meshcat=meshcat, config=config.station)
+        q_measured_port = station.GetOutputPort(station.port_name("position_measured"))
+        q_command_port = station.GetInputPort(station.port_name("position_command"))
         self.library = self.planner = None
         self.compiled = config.controller.method == COMPILED_METHOD
         if plan is None:
-            self.library = builder.AddNamedSystem("feature_library", FeatureLibrarySystem(
-                features=features, X_tool0_E=X_tool0_E, accept_demonstrations=accept_demonstrations,
-                check_period=config.planner.check_period))
-            self.planner = builder.AddNamedSystem("planner", PlannerSystem(
+            self.library = FeatureLibrarySystem.AddToBuilder(
+                builder=builder, features=features, X_tool0_E=X_tool0_E,
+                accept_demonstrations=accept_demonstrations, check_period=config.planner.check_period)
+            self.planner = PlannerSystem.AddToBuilder(
+                builder=builder, library_output_port=self.library.library_output_port,
                 options=planning, policy=policy, start_time_s=config.settle_s, floor_z=floor_z,
                 checker=joint_path_checker(workcell, config) if planning.joint_check else None,
-                # The compiled controller tracks the joint path set before a run (a run
-                # with task changes goes to a task-space sibling, ``with_controller``):
-                # nothing to check for during it.
-                check_period=None if self.compiled else config.planner.check_period))
+                # The compiled controller follows the joint path of the plan its run started
+                # with (a run with task changes goes to a task-space sibling,
+                # ``with_controller``): nothing to check for during it.
+                check_period=None if self.compiled else config.planner.check_period)
+            builder.ExportInput(self.planner.task_input_port, "task")
+            if accept_demonstrations:
+                builder.ExportInput(self.library.demonstration_input_port, "demonstration")
             plan_port = self.planner.plan_output_port
             # The library prepared for the legal-action table (its stacks, its span index
             # and the index's one-time scipy.spatial import) is built with the Diagram,
@@ -272,45 +278,32 @@ class Pipeline(Diagram):
             # The plan reaches the compiled controller as its joint path, in chunks from the
             # source; no Python system is evaluated in the 100 Hz loop.
             lead_s = config.station.time_step if station.plant.has_sampled_output_ports() else 0.0
-            self.source = builder.AddNamedSystem("joint_path_source", JointPathSource(law=self.law, lead_s=lead_s))
-            self.controller = builder.AddNamedSystem(
-                "differential_ik", JointTrajectoryController.for_law(self.law, lead_s=lead_s))
+            self.source = JointPathSource.AddToBuilder(
+                builder=builder, plan_output_port=plan_port, q_measured_output_port=q_measured_port, law=self.law,
+                lead_s=lead_s)
+            self.controller = JointTrajectoryController.AddToBuilder(
+                builder=builder, law=self.law, chunk_output_port=self.source.chunk_output_port,
+                q_measured_output_port=q_measured_port, q_command_input_port=q_command_port, lead_s=lead_s)
         else:
-            self.source = builder.AddNamedSystem("plan_trajectory_source", PlanTrajectorySource())
-            self.controller = builder.AddNamedSystem("differential_ik", DifferentialIKController(
-                plant=controller_plant, model=station.controller_model, frame_E=frame_E,
+            self.source = PlanTrajectorySource.AddToBuilder(builder=builder, plan_output_port=plan_port)
+            self.controller = DifferentialIKController.AddToBuilder(
+                builder=builder, plant=controller_plant, model=station.controller_model, frame_E=frame_E,
+                X_WE_desired_output_port=self.source.X_WE_desired_output_port,
+                V_WE_desired_output_port=self.source.V_WE_desired_output_port,
+                q_measured_output_port=q_measured_port, q_command_input_port=q_command_port,
                 time_step=config.controller.time_step, method=config.controller.method,
                 position_gain=config.controller.position_gain,
-                velocity_limit_fraction=config.controller.velocity_limit_fraction))
+                velocity_limit_fraction=config.controller.velocity_limit_fraction)
         scene = station.scene
         # The monitor measures the joint-state log (same samples) when both have one period.
-        from_log = config.monitor.from_log and config.monitor.period == config.log_period
-        self.monitor = builder.AddNamedSystem("shell_monitor", ShellMonitor(
-            plant=station.plant, robot_geometry_ids=scene.robot_geometry_ids,
-            shell_geometry_ids=scene.keep_out_geometry_ids, period=config.monitor.period,
-            stop_on_penetration=config.monitor.stop_on_penetration, names=scene.names, kinds=scene.kinds,
-            scene=KinematicScene(workcell) if from_log else None))
-
-        # Pipeline order, one Connect per arrow.
-        if self.planner is not None:
-            builder.Connect(self.library.library_output_port, self.planner.library_input_port)
-            builder.ExportInput(self.planner.task_input_port, "task")
-            if accept_demonstrations:
-                builder.ExportInput(self.library.demonstration_input_port, "demonstration")
-        builder.Connect(plan_port, self.source.plan_input_port)
-        if self.compiled:
-            builder.Connect(station.GetOutputPort(station.port_name("position_measured")),
-                            self.source.q_measured_input_port)
-            builder.Connect(self.source.chunk_output_port, self.controller.chunk_input_port)
-        else:
-            builder.Connect(self.source.X_WE_desired_output_port, self.controller.X_WE_desired_input_port)
-            builder.Connect(self.source.V_WE_desired_output_port, self.controller.V_WE_desired_input_port)
-        builder.Connect(self.controller.q_command_output_port, station.GetInputPort(station.port_name("position_command")))
-        builder.Connect(station.GetOutputPort(station.port_name("position_measured")), self.controller.q_measured_input_port)
-        builder.Connect(station.GetOutputPort("query_object"), self.monitor.query_object_input_port)
         # The station's plant holds only the arm: its positions are the plant's.
-        builder.Connect(station.GetOutputPort(station.port_name("position_measured")),
-                        self.monitor.robot_positions_input_port)
+        from_log = config.monitor.from_log and config.monitor.period == config.log_period
+        self.monitor = ShellMonitor.AddToBuilder(
+            builder=builder, plant=station.plant, query_object_output_port=station.GetOutputPort("query_object"),
+            robot_geometry_ids=scene.robot_geometry_ids, shell_geometry_ids=scene.keep_out_geometry_ids,
+            robot_positions_output_port=q_measured_port, period=config.monitor.period,
+            stop_on_penetration=config.monitor.stop_on_penetration, names=scene.names, kinds=scene.kinds,
+            scene=KinematicScene(workcell) if from_log else None)
         state_port = station.GetOutputPort(station.port_name("state"))
         self.logger = LogVectorOutput(state_port, builder, config.log_period)
         self.logger.set_name("joint_state_logger")

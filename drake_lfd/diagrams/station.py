@@ -237,6 +237,12 @@ class Station(Diagram):
         self.controller_model = controller_model
         self.interpolator = interpolator
 
+    @staticmethod
+    def AddToBuilder(*, builder: DiagramBuilder, name: str = "station", **kwargs) -> "Station":
+        """Adds a station named ``name`` (``kwargs``: the constructor's: ``workcell``,
+        ``meshcat``, ``config``, ...); wire its ``ur5e.*`` ports as you need."""
+        return builder.AddNamedSystem(name, Station(**kwargs))
+
     @property
     def model_name(self) -> str:
         return self.config.model_name

@@ -158,12 +158,13 @@ class DemoRecorder(LeafSystem):
             prerequisites_of_calc={self.abstract_state_ticket(self._samples_index)})
 
     @staticmethod
-    def AddToBuilder(builder: DiagramBuilder, measured_position_port: OutputPort, *, num_joints: int = NUM_JOINTS,
-                     rate_hz: float = RTDE_RATE_HZ, name: str = "demo_recorder", **kwargs) -> "DemoRecorder":
-        """Adds a recorder named ``name`` fed by ``measured_position_port``; returns it
-        (``kwargs``: ``finish_time_s``, ``demo_name``, ``description``)."""
+    def AddToBuilder(*, builder: DiagramBuilder, measured_position_output_port: OutputPort,
+                     num_joints: int = NUM_JOINTS, rate_hz: float = RTDE_RATE_HZ, name: str = "demo_recorder",
+                     **kwargs) -> "DemoRecorder":
+        """Adds a recorder named ``name`` fed by ``measured_position_output_port``; returns
+        it (``kwargs``: ``finish_time_s``, ``demo_name``, ``description``)."""
         recorder = builder.AddNamedSystem(name, DemoRecorder(num_joints=num_joints, rate_hz=rate_hz, **kwargs))
-        builder.Connect(measured_position_port, recorder.get_input_port())
+        builder.Connect(measured_position_output_port, recorder.get_input_port())
         return recorder
 
     @property

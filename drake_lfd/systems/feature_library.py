@@ -153,9 +153,11 @@ class FeatureLibrarySystem(LeafSystem):
     def AddToBuilder(*, builder: DiagramBuilder, features: Mapping[str, Feature],
                      demonstration_output_port: OutputPort | None = None,
                      name: str = "feature_library", **kwargs) -> "FeatureLibrarySystem":
-        """Adds the system named ``name``; connects ``demonstration_output_port`` when given."""
+        """Adds the system named ``name``; connects ``demonstration_output_port`` when given
+        (with ``accept_demonstrations=True`` and no port, export or fix its input)."""
+        accept = kwargs.pop("accept_demonstrations", False) or demonstration_output_port is not None
         system = builder.AddNamedSystem(name, FeatureLibrarySystem(
-            features=features, accept_demonstrations=demonstration_output_port is not None, **kwargs))
+            features=features, accept_demonstrations=accept, **kwargs))
         if demonstration_output_port is not None:
             builder.Connect(demonstration_output_port, system.demonstration_input_port)
         return system

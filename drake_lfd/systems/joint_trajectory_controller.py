@@ -335,6 +335,20 @@ class JointTrajectoryController(Diagram):
         self.q_measured_input_port = self.GetInputPort("q_measured")
         self.q_command_output_port = self.GetOutputPort("q_command")
 
+    @staticmethod
+    def AddToBuilder(*, builder: DiagramBuilder, law: DifferentialIKLaw, chunk_output_port, q_measured_output_port,
+                     q_command_input_port=None, name: str = "differential_ik",
+                     **kwargs) -> "JointTrajectoryController":
+        """Adds a controller with ``law``'s limits, period and gain, named ``name``, fed by
+        the joint-path source's chunks and the measured positions, and (when given)
+        commanding ``q_command_input_port`` (``kwargs``: ``lead_s``, ``chunk_samples``)."""
+        controller = builder.AddNamedSystem(name, JointTrajectoryController.for_law(law, **kwargs))
+        builder.Connect(chunk_output_port, controller.chunk_input_port)
+        builder.Connect(q_measured_output_port, controller.q_measured_input_port)
+        if q_command_input_port is not None:
+            builder.Connect(controller.q_command_output_port, q_command_input_port)
+        return controller
+
     @classmethod
     def for_law(cls, law: DifferentialIKLaw, **kwargs) -> "JointTrajectoryController":
         """A controller with ``law``'s limits, period and gain (``kwargs``: ``lead_s``,
