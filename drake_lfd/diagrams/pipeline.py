@@ -54,7 +54,7 @@ from pydrake.geometry import Meshcat
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, System
-from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
+from pydrake.systems.primitives import LogVectorOutput
 
 from drake_lfd.core.features import Feature
 from drake_lfd.core.tasks import Box, ConcreteTask, Task, draw_trial
@@ -80,7 +80,7 @@ from drake_lfd.systems.feature_library import FeatureLibrarySystem
 from drake_lfd.systems.joint_path_source import JointPathSource
 from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryController, law_for_plant
 from drake_lfd.systems.plan_trajectory_source import PlanTrajectorySource
-from drake_lfd.systems.planner import NO_PLAN, PlannerSystem
+from drake_lfd.systems.planner import NO_PLAN, GivenPlan, PlannerSystem
 from drake_lfd.systems.shell_monitor import ShellMonitor
 from drake_lfd.systems.trial_end import TrialEnd, plan_end_time_s
 
@@ -266,9 +266,8 @@ class Pipeline(Diagram):
             # not in the first trial's plan; every plan of these features reuses it.
             prepared_library(list(features.values()), planning.tolerances)
         else:
-            constant = builder.AddNamedSystem("given_plan", ConstantValueSource(
-                AbstractValue.Make(scheduled_plan_from_timed(plan, config.settle_s))))
-            plan_port = constant.get_output_port()
+            given = builder.AddNamedSystem("given_plan", GivenPlan(scheduled_plan_from_timed(plan, config.settle_s)))
+            plan_port = given.plan_output_port
         controller_plant = station.controller_plant
         frame_E = controller_plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)
         #: The controller's law on the controller plant (the compiled controller's limits,

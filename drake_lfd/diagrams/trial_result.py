@@ -180,8 +180,8 @@ def critical_errors_from_log(t: np.ndarray, q: np.ndarray, due_times_s, X_WE_cri
     ``t`` (m,) and ``q`` (m, 6) are the log; ``due_times_s`` and ``X_WE_critical`` the
     plan's due time and pose of each con; ``end_time_s`` the time the run reached;
     ``plant_step_s`` the discrete plant's step. The joint positions at a due time are the
-    plant's state in the Context then (the result of its last step at or before it), which
-    a periodic log reports at the next step's time: the log at that time, linear between
+    plant's state in the Context then (the result of its last step before it), which a
+    periodic log reports at the next step's time: the log at that time, linear between
     its samples. A con due after ``end_time_s`` (or after the last sample) was not reached.
     """
     errors = []
@@ -193,7 +193,9 @@ def critical_errors_from_log(t: np.ndarray, q: np.ndarray, due_times_s, X_WE_cri
             nan6 = np.full(NUM_JOINTS, np.nan)
             errors.append(CriticalError(con, t_due, math.nan, math.nan, nan6, reached=False))
             continue
-        t_state = (math.floor(t_due / plant_step_s + 1e-9) + 1) * plant_step_s
+        # The state at t_due is the result of the last step strictly before it, which the
+        # log reports at the first step time at or after t_due.
+        t_state = math.ceil(t_due / plant_step_s - 1e-9) * plant_step_s
         q_due = np.array([np.interp(t_state, t, q[:, j]) for j in range(NUM_JOINTS)])
         position, rotation = pose_errors(kinematics.X_WE(q_due), X_desired)
         errors.append(CriticalError(con, t_due, position, rotation, q_due))

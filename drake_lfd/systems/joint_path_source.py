@@ -2,15 +2,16 @@
 
 :class:`JointPathSource` takes the planner's plan on its ``plan`` port and the arm's
 measured positions on ``q_measured``. At initialization it latches the arm's positions
-(the run's start, ``q_0``), and the run's feed-forward samples ``w_k`` (one per controller
-period: :func:`~drake_lfd.systems.joint_trajectory_controller.feed_forward_samples` of
-:func:`~drake_lfd.systems.joint_trajectory_controller.joint_path_of_plan`) are a cache
-entry of the plan and ``q_0``, so they live in the Context and are computed once a run.
-Its ``chunk`` output is its discrete state, ``[t_start, q_0, w_k .. w_(k+M-1)]``, written
-at initialization and then once every ``M`` controller periods, at the last instant of a
-chunk, with the next one (a discrete update: the controller's update at the same instant
-still reads the chunk it is in). So no Python runs in the 100 Hz loop, and one Diagram runs many trials in
-many Contexts.
+(the run's start, ``q_0``, in abstract state); the run's joint path
+(:func:`~drake_lfd.systems.joint_trajectory_controller.joint_path_of_plan`) and its
+feed-forward samples ``w_k``, one per controller period up to the path's end
+(:func:`~drake_lfd.systems.joint_trajectory_controller.feed_forward_samples`), are a
+cache entry of the plan and ``q_0``: they live in the Context and are computed once a
+run. Its ``chunk`` output is its discrete state, ``[t_start, q_0, w_k .. w_(k+M-1)]``,
+written at initialization and then once every ``M`` controller periods, at the last
+instant of a chunk, with the next one (a discrete update: the controller's update at the
+same instant still reads the chunk it is in). So no Python runs in the 100 Hz loop, and
+one Diagram runs many trials in many Contexts.
 
 Not for: the tracking law (``joint_trajectory_controller.py``) or planning
 (``planner.py``).
@@ -70,14 +71,17 @@ class JointPathSource(LeafSystem):
         n = self._num_joints = 6
         self.plan_input_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(NO_PLAN))
         self.q_measured_input_port = self.DeclareVectorInputPort("q_measured", n)
-        # The run's start: q_0, latched at initialization.
-        self._start_index = self.DeclareDiscreteState(n)
+        # The run's start, q_0: latched by an unrestricted update at initialization (before
+        # the discrete ones), in abstract state, which the chunks' discrete updates leave
+        # alone, so the path's cache entry stays valid for the whole run.
+        self._start_index = self.DeclareAbstractState(AbstractValue.Make(np.zeros(n)))
         self._chunk_index = self.DeclareDiscreteState(chunk_size(n, self._samples))
         self._path_cache = self.DeclareCacheEntry(
             "joint_path", ValueProducer(allocate=lambda: AbstractValue.Make(object()), calc=self._calc_path),
             prerequisites_of_calc={self.input_port_ticket(self.plan_input_port.get_index()),
-                                   self.discrete_state_ticket(self._start_index)})
+                                   self.abstract_state_ticket(self._start_index)})
         self.chunk_output_port = self.DeclareStateOutputPort("chunk", self._chunk_index)
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._latch_start)
         self.DeclareInitializationDiscreteUpdateEvent(self._initialize)
         # At the last instant of each chunk, the next one: the controller's update at that
         # instant still reads the chunk it is in (simultaneous discrete updates).
@@ -94,40 +98,44 @@ class JointPathSource(LeafSystem):
         builder.Connect(q_measured_output_port, source.q_measured_input_port)
         return source
 
-    def joint_path(self, root_context) -> tuple[np.ndarray, np.ndarray] | None:
+    def joint_path(self, root_context) -> tuple[np.ndarray, np.ndarray]:
         """The run's desired joint path in ``root_context``: simulation times (m,) and
-        positions (m, 6), or None without a plan."""
-        context = self.GetMyContextFromRoot(root_context)
-        return self._path_cache.Eval(context)
-
-    def _path_of(self, plan, q_start: np.ndarray):
-        if not isinstance(plan, ScheduledPlan) or not plan.planned:
-            return None
-        return joint_path_of_plan(plan, q_start, self._law)
+        positions (m, 6) (the arm held at its start without a plan)."""
+        path = self._path_cache.Eval(self.GetMyContextFromRoot(root_context))
+        return path[0], path[1]
 
     def _calc_path(self, context, value):
-        q_start = context.get_discrete_state(self._start_index).value().copy()
-        value.set_value(self._path_of(self.plan_input_port.Eval(context), q_start))
+        """(t, q, w): the run's joint path and ``w_k`` from instant 0 to three periods
+        past its end (held after)."""
+        q_start = context.get_abstract_state(self._start_index).get_value()
+        plan = self.plan_input_port.Eval(context)
+        if isinstance(plan, ScheduledPlan) and plan.planned:
+            t, q = joint_path_of_plan(plan, q_start, self._law)
+        else:  # hold the start
+            t, q = np.zeros(1), np.asarray(q_start, dtype=float)[None, :]
+        count = max(int(np.ceil(t[-1] / self._time_step - 1e-9)), 0) + 3
+        value.set_value((t, q, feed_forward_samples(t, q, self._time_step, self._gain, self._lead_s, 0, count)))
 
-    def _chunk(self, path, q_start: np.ndarray, first: int) -> np.ndarray:
+    def _chunk(self, context, q_start: np.ndarray, first: int) -> np.ndarray:
         """The chunk of instants ``first .. first + M - 1``."""
-        if path is None:  # hold the start: w = dt K q_0
-            t, q = np.zeros(1), q_start[None, :]
-        else:
-            t, q = path
-        w = feed_forward_samples(t, q, self._time_step, self._gain, self._lead_s, first, self._samples)
-        return np.concatenate([[first * self._time_step], q_start, w.ravel()])
+        w = self._path_cache.Eval(context)[2]
+        rows = np.minimum(np.arange(first, first + self._samples), len(w) - 1)
+        return np.concatenate([[first * self._time_step], q_start, w[rows].ravel()])
+
+    def _latch_start(self, context, state):
+        q_start = np.array(self.q_measured_input_port.Eval(context), dtype=float)
+        state.get_mutable_abstract_state(self._start_index).set_value(q_start)
+        return EventStatus.Succeeded()
 
     def _initialize(self, context, discrete_state):
-        q_start = np.array(self.q_measured_input_port.Eval(context), dtype=float)
+        # After every unrestricted initialization: the planner's plan and q_0 are in.
+        q_start = context.get_abstract_state(self._start_index).get_value()
         first = int(round(context.get_time() / self._time_step))
-        discrete_state.set_value(self._start_index, q_start)
-        path = self._path_of(self.plan_input_port.Eval(context), q_start)
-        discrete_state.set_value(self._chunk_index, self._chunk(path, q_start, first))
+        discrete_state.set_value(self._chunk_index, self._chunk(context, q_start, first))
         return EventStatus.Succeeded()
 
     def _next_chunk(self, context, discrete_state):
-        q_start = context.get_discrete_state(self._start_index).value()
+        q_start = context.get_abstract_state(self._start_index).get_value()
         first = int(round(context.get_time() / self._time_step)) + 1
-        discrete_state.set_value(self._chunk_index, self._chunk(self._path_cache.Eval(context), q_start, first))
+        discrete_state.set_value(self._chunk_index, self._chunk(context, q_start, first))
         return EventStatus.Succeeded()

@@ -32,7 +32,7 @@ from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan, replan, task_fingerprint
 from drake_lfd.systems.feature_library import LibraryFeatures
 
-__all__ = ["NO_PLAN", "PlannerSystem"]
+__all__ = ["GivenPlan", "NO_PLAN", "PlannerSystem"]
 
 #: The ``plan`` a :class:`PlannerSystem` puts out before its first plan (a Context not
 #: initialized yet): a :class:`~drake_lfd.planning.replanning.ScheduledPlan`, so the
@@ -213,3 +213,25 @@ class PlannerSystem(LeafSystem):
 def _library_digest(plan: ScheduledPlan) -> bytes:
     """The digest of the library ``plan`` was made with (empty when unknown)."""
     return plan.inputs[1].digest if len(plan.inputs) == 2 else b""
+
+
+class GivenPlan(LeafSystem):
+    """A fixed plan, put out as the planner system puts out its own: for trying the
+    closed loop on a given motion without a library or a planner.
+
+    .. pydrake_system::
+
+        name: GivenPlan
+        output_ports:
+        - plan
+
+    The plan lives in the system's abstract state (default: ``plan``), so its output
+    changes only when a Context's state is set, and the joint-path source's cache of the
+    run's path stays valid for the whole run.
+    """
+
+    def __init__(self, plan: ScheduledPlan):
+        super().__init__()
+        self._state_index = self.DeclareAbstractState(AbstractValue.Make(plan))
+        self.plan_output_port = self.DeclareStateOutputPort("plan", self._state_index)
+
