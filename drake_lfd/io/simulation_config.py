@@ -40,6 +40,7 @@ import math
 from pydrake.multibody.plant import ApplyMultibodyPlantConfig, MultibodyPlant, MultibodyPlantConfig
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator, SimulatorConfig
 from pydrake.systems.primitives import ConstantVectorSource
+from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pydrake.visualization import VisualizationConfig
 
 from drake_lfd.core.errors import InputError
@@ -169,6 +170,31 @@ class _StructField:
             setattr(getattr(instance, self._struct), self._attribute, value)
 
 
+class _PicklableStructs:
+    """Pickling for a config holding Drake's structs (which do not pickle): each struct
+    travels as its type and its YAML (``yaml_dump_typed``), and is loaded back with
+    ``yaml_load_typed``, so configs reach worker processes (``--workers``)."""
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        for key, value in state.items():
+            if hasattr(type(value), "__fields__"):
+                state[key] = _DrakeStruct(type(value), yaml_dump_typed(value))
+        return state
+
+    def __setstate__(self, state):
+        for key, value in state.items():
+            if isinstance(value, _DrakeStruct):
+                state[key] = yaml_load_typed(schema=value.schema, data=value.yaml)
+        self.__dict__.update(state)
+
+
+@dataclasses.dataclass(frozen=True)
+class _DrakeStruct:
+    schema: type
+    yaml: str
+
+
 def _struct_fields(struct) -> tuple:
     """The values of a Drake config struct's serialized fields, for comparisons."""
     return tuple((field.name, repr(getattr(struct, field.name))) for field in type(struct).__fields__)
@@ -197,7 +223,7 @@ class DriveConfig:
 
 
 @dataclasses.dataclass(eq=False)
-class StationConfig:
+class StationConfig(_PicklableStructs):
     """The station: plant, drive, command sampling, visualisation.
 
     Attributes
@@ -322,7 +348,7 @@ class JointCheckConfig:
 
 
 @dataclasses.dataclass(eq=False)
-class PipelineConfig:
+class PipelineConfig(_PicklableStructs):
     """Everything a closed-loop run is configured by.
 
     Attributes
