@@ -19,7 +19,7 @@ from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.systems.joint_path_source import JointPathSource
 from drake_lfd.systems.joint_trajectory_controller import (
-    JointTrajectoryController, feed_forward_samples, joint_trajectory_of_plan,
+    CHUNK_SAMPLES, JointTrajectoryController, feed_forward_samples, joint_trajectory_of_plan,
 )
 from drake_lfd.systems.shell_monitor import _motion_bound, _motion_bounds
 
@@ -35,13 +35,14 @@ def test_the_default_controller_is_the_compiled_one_without_python_systems():
     assert isinstance(pipeline.controller, JointTrajectoryController)
     # Every system of the controller is one of Drake's C++ primitives.
     names = {type(system).__name__ for system in pipeline.controller.GetSystems()}
-    assert names == {"AffineSystem", "Adder", "Demultiplexer", "Gain", "Multiplexer", "MatrixGain", "Saturation",
-                     "LinearSystem"}
+    assert names == {"AffineSystem", "Adder", "Demultiplexer", "Multiplexer", "MatrixGain", "Saturation",
+                     "LinearSystem", "SparseMatrixGain"}
     # The only Python system feeding it, the joint-path source, has no event in the 100 Hz
-    # loop: one periodic update per chunk of 25 controller periods.
+    # loop: one periodic update per chunk of CHUNK_SAMPLES (10) controller periods.
     assert isinstance(pipeline.source, JointPathSource)
     attribute = pipeline.source.GetUniquePeriodicDiscreteUpdateAttribute()
-    assert attribute.period_sec() == pytest.approx(25 * pipeline.config.controller.time_step)
+    assert attribute.period_sec() == pytest.approx(CHUNK_SAMPLES * pipeline.config.controller.time_step)
+    assert CHUNK_SAMPLES >= 10
     # The monitor has no event of its own: it measures the joint log.
     assert pipeline.monitor.measures_log
 

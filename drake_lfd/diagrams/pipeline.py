@@ -306,9 +306,8 @@ class Pipeline(Diagram):
         state_port = station.GetOutputPort(station.port_name("state"))
         self.logger = LogVectorOutput(state_port, builder, config.log_period)
         self.logger.set_name("joint_state_logger")
-        # Ends the run once the plan is executed (checked every planner period).
-        self.trial_end = TrialEnd.AddToBuilder(builder=builder, plan_output_port=plan_port,
-                                               period=config.planner.check_period)
+        # Ends the run once the plan is executed.
+        self.trial_end = TrialEnd.AddToBuilder(builder=builder, plan_output_port=plan_port)
         builder.ExportOutput(plan_port, "plan")
         builder.ExportOutput(self.monitor.min_distance_output_port, "min_distance")
         builder.ExportOutput(state_port, station.port_name("state"))

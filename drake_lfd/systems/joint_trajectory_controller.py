@@ -80,9 +80,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import scipy.sparse
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
-    Adder, AffineSystem, Demultiplexer, Gain, LinearSystem, MatrixGain, Multiplexer, Saturation,
+    Adder, AffineSystem, Demultiplexer, LinearSystem, MatrixGain, Multiplexer, Saturation, SparseMatrixGain,
 )
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -98,7 +99,8 @@ __all__ = ["JointTrajectoryController", "joint_path_of_plan", "joint_trajectory_
 JOINT_PATH_AGREEMENT_M = 1e-3
 
 # Controller instants per chunk of the path (the source's Python event runs once a chunk:
-# every 0.25 s at the 10 ms period, outside the 100 Hz loop).
+# every 0.25 s at the 10 ms period, outside the 100 Hz loop; a Python event costs about
+# as much as the whole selection's update, and the selection's vectors grow with M).
 CHUNK_SAMPLES = 25
 
 # |w| bound of the chunk's gate (module docstring): w_k is about dt K |q| < 1 rad.
@@ -258,77 +260,63 @@ class JointTrajectoryController(Diagram):
         dt, K = self.time_step, self.position_gain
         builder = DiagramBuilder()
         add = builder.AddNamedSystem
-        # The controller's clock: x <- x + dt at every controller instant; the update at
-        # an instant reads that instant's time.
-        clock = add("clock", AffineSystem(A=np.eye(1), B=np.zeros((1, 0)), f0=[dt], C=np.eye(1),
-                                          D=np.zeros((1, 0)), y0=[0.0], time_period=dt))
-        split = add("chunk_split", Demultiplexer([1, n, n * M]))
-        # One-hot h_i of the instant within the chunk, x_i = (clock - t_start) / dt - i:
-        # h_i = clamp(S (x_i + 1/2), 0, 1) - clamp(S (x_i - 1/2), 0, 1), exactly 0 or 1 for
-        # x_i within 1/(2S) of an integer (S = 4: a quarter of a period of rounding).
-        S = 4.0
-        times = add("clock_and_chunk_start", Multiplexer([1, 1]))
-        offsets = np.arange(M, dtype=float)
-        phase = add("instant_in_chunk", AffineSystem(
-            A=np.zeros((0, 0)), B=np.zeros((0, 2)), f0=np.zeros(0), C=np.zeros((2 * M, 0)),
-            D=np.tile([[S / dt, -S / dt]], (2 * M, 1)),
-            y0=np.concatenate([S * (0.5 - offsets), S * (-0.5 - offsets)])))
-        ramps = add("instant_ramps", Saturation(np.zeros(2 * M), np.ones(2 * M)))
-        one_hot = add("instant_one_hot", MatrixGain(np.hstack([np.eye(M), -np.eye(M)])))
-        # B (h - 1) per sample and joint: 0 for the instant's sample, -B for the others.
-        gate_level = add("gate_level", AffineSystem(
-            A=np.zeros((0, 0)), B=np.zeros((0, M)), f0=np.zeros(0), C=np.zeros((n * M, 0)),
-            D=_GATE_BOUND * np.kron(np.eye(M), np.ones((n, 1))), y0=np.full(n * M, -_GATE_BOUND)))
-        negate = add("negated_samples", Gain(-1.0, n * M))
-        high = add("gate_positive", Adder(2, n * M))
-        low = add("gate_negative", Adder(2, n * M))
-        relu_high = add("relu_positive", Saturation(np.zeros(n * M), np.full(n * M, np.inf)))
-        relu_low = add("relu_negative", Saturation(np.zeros(n * M), np.full(n * M, np.inf)))
-        # relu(w + B (h - 1)) - relu(-w + B (h - 1)), summed over the chunk's samples: w_k.
-        select = add("instant_sample", MatrixGain(np.hstack([
-            np.kron(np.ones((1, M)), np.eye(n)), -np.kron(np.ones((1, M)), np.eye(n))])))
-        gated = add("gated_samples", Multiplexer([n * M, n * M]))
-        mux = add("desired_and_measured", Multiplexer([n, n]))
+        size = chunk_size(n, M)
         identity = np.eye(n)
-        # dt * v = w_k - dt K q_measured: one step of the command.
-        step = add("feed_forward_and_feedback", MatrixGain(np.hstack([identity, -dt * K * identity])))
+        stack = np.kron(np.ones((1, M)), identity)  # (n, nM): the sum over a chunk's samples
+        split = add("chunk_split", Demultiplexer([1, n, n * M]))
+        # The controller's clock: x <- x + dt at every controller instant (the update at an
+        # instant reads that instant's time), put out as the arguments of the instant's
+        # ramps, S (x_i + 1/2) - 1 and S (x_i - 1/2), x_i = (x - t_start) / dt - i.
+        S = 4.0  # the ramps below are exactly 0 or -1 / 1 for x_i within 1/(2S) of an integer
+        offsets = np.arange(M, dtype=float)
+        clock = add("clock", AffineSystem(
+            A=np.eye(1), B=np.zeros((1, 1)), f0=[dt], C=np.full((2 * M, 1), S / dt), D=np.full((2 * M, 1), -S / dt),
+            y0=np.concatenate([S * (0.5 - offsets) - 1.0, S * (-0.5 - offsets)]), time_period=dt))
+        # ramp_a,i - 1 in [-1, 0] and ramp_b,i in [0, 1]: h_i - 1 = (ramp_a,i - 1) - ramp_b,i.
+        ramps = add("instant_ramps", Saturation(np.concatenate([-np.ones(M), np.zeros(M)]),
+                                                np.concatenate([np.zeros(M), np.ones(M)])))
+        ramps_and_samples = add("ramps_and_samples", Multiplexer([2 * M, n * M]))
+        # The gate: [w_i + B (h_i - 1); -w_i + B (h_i - 1)] per sample and joint: +-w_i
+        # exactly for the instant's sample (its level is 0 + 0), below -B + |w| < 0 for
+        # the others.
+        per_sample = np.kron(np.eye(M), np.ones((n, 1)))  # (nM, M)
+        level = _GATE_BOUND * np.hstack([per_sample, -per_sample])
+        gate = add("gate", SparseMatrixGain(scipy.sparse.csc_matrix(np.vstack([
+            np.hstack([level, np.eye(n * M)]), np.hstack([level, -np.eye(n * M)])]))))
+        relu = add("relu", Saturation(np.zeros(2 * n * M), np.full(2 * n * M, np.inf)))
+        gated_and_measured = add("gated_and_measured", Multiplexer([2 * n * M, n]))
+        # dt * v = w_k - dt K q_measured, w_k = sum_i relu(w_i + level_i) - relu(-w_i + level_i):
+        # one step of the command.
+        step = add("feed_forward_and_feedback", MatrixGain(np.hstack([stack, -stack, -dt * K * identity])))
         speed_limit = add("joint_speed_limits", Saturation(
             -dt * np.asarray(velocity_limits, dtype=float), dt * np.asarray(velocity_limits, dtype=float)))
         # The command integrator: x <- x + dt v every period, from 0 at the run's start;
-        # the command is q_0 + x (no feed-through: the drive holds it until the next
-        # update, and nothing upstream is evaluated between updates).
+        # the command is q_0 + x (no feed-through from the measurement or the clock: the
+        # drive holds it until the next update, and nothing upstream is evaluated between
+        # updates).
         self._command = add("command_integrator", LinearSystem(
             A=identity, B=identity, C=identity, D=np.zeros((n, n)), time_period=dt))
         initial_plus = add("initial_plus_integral", Adder(2, n))
         position_limit = add("joint_position_limits", Saturation(
             np.asarray(position_lower, dtype=float), np.asarray(position_upper, dtype=float)))
         builder.ExportInput(split.get_input_port(), "chunk")
-        builder.Connect(clock.get_output_port(), times.get_input_port(0))
-        builder.Connect(split.get_output_port(0), times.get_input_port(1))
-        builder.Connect(times.get_output_port(), phase.get_input_port())
-        builder.Connect(phase.get_output_port(), ramps.get_input_port())
-        builder.Connect(ramps.get_output_port(), one_hot.get_input_port())
-        builder.Connect(one_hot.get_output_port(), gate_level.get_input_port())
-        builder.Connect(split.get_output_port(2), high.get_input_port(0))
-        builder.Connect(gate_level.get_output_port(), high.get_input_port(1))
-        builder.Connect(split.get_output_port(2), negate.get_input_port())
-        builder.Connect(negate.get_output_port(), low.get_input_port(0))
-        builder.Connect(gate_level.get_output_port(), low.get_input_port(1))
-        builder.Connect(high.get_output_port(), relu_high.get_input_port())
-        builder.Connect(low.get_output_port(), relu_low.get_input_port())
-        builder.Connect(relu_high.get_output_port(), gated.get_input_port(0))
-        builder.Connect(relu_low.get_output_port(), gated.get_input_port(1))
-        builder.Connect(gated.get_output_port(), select.get_input_port())
-        builder.Connect(select.get_output_port(), mux.get_input_port(0))
-        builder.ExportInput(mux.get_input_port(1), "q_measured")
-        builder.Connect(mux.get_output_port(), step.get_input_port())
+        builder.Connect(split.get_output_port(0), clock.get_input_port())
+        builder.Connect(clock.get_output_port(), ramps.get_input_port())
+        builder.Connect(ramps.get_output_port(), ramps_and_samples.get_input_port(0))
+        builder.Connect(split.get_output_port(2), ramps_and_samples.get_input_port(1))
+        builder.Connect(ramps_and_samples.get_output_port(), gate.get_input_port())
+        builder.Connect(gate.get_output_port(), relu.get_input_port())
+        builder.Connect(relu.get_output_port(), gated_and_measured.get_input_port(0))
+        builder.ExportInput(gated_and_measured.get_input_port(1), "q_measured")
+        builder.Connect(gated_and_measured.get_output_port(), step.get_input_port())
         builder.Connect(step.get_output_port(), speed_limit.get_input_port())
         builder.Connect(speed_limit.get_output_port(), self._command.get_input_port())
         builder.Connect(split.get_output_port(1), initial_plus.get_input_port(0))
         builder.Connect(self._command.get_output_port(), initial_plus.get_input_port(1))
         builder.Connect(initial_plus.get_output_port(), position_limit.get_input_port())
         builder.ExportOutput(position_limit.get_output_port(), "q_command")
-        self._select = select
+        self._relu = relu
+        self._stack = stack
         builder.BuildInto(self)
         self.set_name("joint_trajectory_controller")
         self.chunk_input_port = self.GetInputPort("chunk")
@@ -359,7 +347,9 @@ class JointTrajectoryController(Diagram):
 
     def feed_forward(self, root_context: Context) -> np.ndarray:
         """The ``w`` the controller reads at the clock's instant in ``root_context``, (6,)."""
-        return self._select.get_output_port().Eval(self._select.GetMyContextFromRoot(root_context))
+        gated = self._relu.get_output_port().Eval(self._relu.GetMyContextFromRoot(root_context))
+        half = len(gated) // 2
+        return self._stack @ gated[:half] - self._stack @ gated[half:]
 
 
 def law_for_plant(plant, model, frame_E, config) -> DifferentialIKLaw:
