@@ -188,6 +188,14 @@ class _PicklableStructs:
                 state[key] = yaml_load_typed(schema=value.schema, data=value.yaml)
         self.__dict__.update(state)
 
+    def __deepcopy__(self, memo):
+        # Drake's structs deep-copy directly (no YAML round trip: a task's config is
+        # copied whenever a Context clones the task it travels with).
+        new = object.__new__(type(self))
+        memo[id(self)] = new
+        new.__dict__.update({key: copy.deepcopy(value, memo) for key, value in self.__dict__.items()})
+        return new
+
 
 @dataclasses.dataclass(frozen=True)
 class _DrakeStruct:
