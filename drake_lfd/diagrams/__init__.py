@@ -4,25 +4,25 @@ The default closed loop (``drake-lfd simulate``), one line per arrow, with the m
 that makes the arrow's output (paths below ``drake_lfd``); ``Pipeline`` wires it in
 ``pipeline``, one ``Connect`` per arrow::
 
-    library          --FeatureLibrarySystem-->      features         systems.feature_library
-    features + task  --PlannerSystem-->             ScheduledPlan    systems.planner
-        plan_composition, joint-path check, TOPP-RA:  planning.planner, robot.joint_path,
-                                                      robot.path_timing, robot.toppra
-    plan             --JointPathSource-->           joint-path chunk systems.joint_path_source
-    chunk            --JointTrajectoryController--> q_command        systems.joint_trajectory_controller
-    q_command        --Station-->                   measured joints  diagrams.station
-    joint log        --ShellMonitor-->              clearances       systems.shell_monitor
-    plan             --TrialEnd-->                  end of the run   systems.trial_end
-    run's Context    --Pipeline.trial_result-->     ClosedLoopResult diagrams.trial_result
-    ClosedLoopResult --judge_run-->                 RunJudgement     diagrams.judging
+    library         --FeatureLibrarySystem-->       features       systems.feature_library
+    features + task --PlannerSystem-->              ScheduledPlan  systems.planner
+      (plan_composition, joint-path check, TOPP-RA:  planning.planner, robot.joint_path,
+                                                     robot.path_timing, robot.toppra)
+    plan            --JointPathSource-->            chunk          systems.joint_path_source
+    chunk           --JointTrajectoryController-->  q_command      systems.joint_trajectory_controller
+    q_command       --Station-->                    q_measured     diagrams.station
+    joint log       --ShellMonitor-->               clearances     systems.shell_monitor
+    plan            --TrialEnd-->                   end of run     systems.trial_end
+    Context         --Pipeline.trial_result-->      the run        diagrams.trial_result
+    the run         --judge_run-->                  verdict        diagrams.judging
 
 The paper's baseline beside it (``PlanningOptions.paper_baseline()``: Eq. 31's cost, no
 joint check; controller ``drake`` or ``pseudo_inverse``)::
 
-    features + task  --PlannerSystem, timing law--> ScheduledPlan    systems.planner, core.timing
-    plan             --PlanTrajectorySource-->      X_WE(t), V_WE(t) systems.plan_trajectory_source
-    X_WE(t), V_WE(t) --DifferentialIKController-->  q_command        systems.differential_ik
-    q_command        --Station-->                   measured joints  diagrams.station
+    features + task --PlannerSystem, timing law-->  ScheduledPlan  systems.planner, core.timing
+    plan            --PlanTrajectorySource-->       X_WE, V_WE     systems.plan_trajectory_source
+    X_WE, V_WE      --DifferentialIKController-->   q_command      systems.differential_ik
+    q_command       --Station-->                    q_measured     diagrams.station
 
 The modules:
 
