@@ -12,13 +12,31 @@ Planning for Human-Robot Collaboration". The pipeline, and where each arrow live
     task + LB --Eq. 19-21-->                     legal actions       core.similarity, planning.composition
     legal actions --exact DP / Q-learning-->     composition         planning.exact_planner, planning.q_learning
     composition --Eq. 22-25-->                   SE(3) plan          core.mapping, planning.planner
-    SE(3) plan --timing law-->                   X_WE(t), V_WE(t)    core.timing
-    X_WE(t) --differential IK, closed loop-->    UR5e joint motion   systems.differential_ik, diagrams.pipeline
 
-Each stage is also a Drake LeafSystem (``systems/``): ``DemoRecorder`` ->
-``FeatureLibrarySystem`` -> ``PlannerSystem`` -> ``PlanTrajectorySource`` ->
-``DifferentialIKController`` -> the UR5e ``Station``, watched by a ``ShellMonitor``;
-:func:`build_pipeline` wires them in one Diagram.
+From the SE(3) plan on, what runs by default (``drake-lfd simulate``, ``build_pipeline``)::
+
+    SE(3) plan --joint-path check-->             joint path          robot.joint_path, planning.executable
+    joint path --TOPP-RA-->                      timed joint path    robot.path_timing, robot.toppra
+    timed joint path --in chunks-->              joint references    systems.joint_path_source
+    references --compiled Drake primitives-->    q_command           systems.joint_trajectory_controller
+    q_command --UR5e MultibodyPlant, drive-->    UR5e joint motion   diagrams.station
+    joint motion --clearances, end of run-->     monitored run       systems.shell_monitor, systems.trial_end
+    monitored run --success criteria-->          verdict             diagrams.trial_result, diagrams.judging
+
+and the paper's baseline beside it (``PlanningOptions.paper_baseline()``, controller
+``drake`` or ``pseudo_inverse``)::
+
+    SE(3) plan --timing law-->                   X_WE(t), V_WE(t)    core.timing
+    X_WE(t) --scheduled plan as a source-->      desired X_WE, V_WE  systems.plan_trajectory_source
+    X_WE, V_WE --differential IK, Python-->      q_command           systems.differential_ik
+    q_command --UR5e MultibodyPlant, drive-->    UR5e joint motion   diagrams.station
+
+Each stage is also a Drake LeafSystem (``systems/``): ``FeatureLibrarySystem`` ->
+``PlannerSystem`` -> ``JointPathSource`` -> ``JointTrajectoryController`` -> the UR5e
+``Station``, watched by a ``ShellMonitor`` and ended by ``TrialEnd`` (the baseline puts
+``PlanTrajectorySource`` -> ``DifferentialIKController`` in the middle);
+``DemoRecorder`` records demonstrations; :func:`build_pipeline` wires them in one
+Diagram.
 
 Layers, lowest first; a module imports only from its own layer or lower ones (a test
 checks it):
@@ -27,7 +45,8 @@ checks it):
     Pure maths and data types: dual quaternions, features, similarity, mapping, timing,
     tasks, demonstrations, errors. No Diagram, no files.
 ``robot``
-    The UR5e: kinematics (a MultibodyPlant), initial inverse kinematics, scene geometry.
+    The UR5e: kinematics (a MultibodyPlant), inverse kinematics, scene geometry, the
+    plan-time joint-path check and TOPP-RA timing.
 ``planning``
     The composition problem and its MDP, the exact and Q-learning planners, training,
     the Gymnasium environment, replanning.
@@ -36,9 +55,10 @@ checks it):
 ``systems``
     The LeafSystems, thin wrappers over the layers below.
 ``diagrams``
-    The station, the pipeline, closed-loop runs, kinesthetic recording, model preview.
+    The station, the pipeline, closed-loop runs, their results and judging, kinesthetic
+    recording, model preview.
 ``experiments``
-    Trials and their judging, the paper's Section 6, figures.
+    Trials, the public ``plan_task``, the paper's Section 6, figures.
 ``cli``
     The ``drake-lfd`` command line.
 

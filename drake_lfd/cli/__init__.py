@@ -1,8 +1,22 @@
 """Layer 8, the ``drake-lfd`` command line: thin argparse front ends over the library.
 
-One module per command (``record``, ``library``, ``train``, ``plan``, ``simulate``,
-``paper``, ``show_model``); :mod:`drake_lfd.cli.app` wires them together and maps errors
-to exit codes. Nothing below this layer parses arguments or prints to the console.
+Nothing below this layer parses arguments or prints to the console. ``drake-lfd
+simulate`` runs the default pipeline (``drake_lfd.diagrams.pipeline``).
+
+The modules:
+
+* ``app``: the parser, the commands wired together, errors mapped to exit codes.
+* ``record``: ``drake-lfd record``, a simulated kinesthetic demonstration.
+* ``library``: ``drake-lfd library add|show|copy|remove``.
+* ``train``: ``drake-lfd train``, Q-learning of a general policy.
+* ``plan``: ``drake-lfd plan``, one SE(3) motion plan or a demonstration request.
+* ``simulate``: ``drake-lfd simulate``, closed-loop runs of N trials of a task.
+* ``sweep``: ``drake-lfd sweep``, trials at every base placement of a grid.
+* ``export``: ``drake-lfd export``, a planned joint trajectory as files a real UR5e runs.
+* ``paper``: ``drake-lfd paper``, the paper's Section 6 with a report.
+* ``show_model``: ``drake-lfd show-model``, a Meshcat animation of the UR5e.
+* ``argument_checks``: checks of command-line values shared by the commands.
+* ``progress``: a minimal text progress bar on stderr.
 """
 
 from drake_lfd.cli.app import main

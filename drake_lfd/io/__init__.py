@@ -1,8 +1,33 @@
 """Layer 4, files: everything read from or written to disk.
 
-``task_files`` (task YAML), ``simulation_config`` (the typed ``simulation:`` block),
-``guidance_scripts`` (``drake-lfd record`` scripts), ``demonstration_logs`` (RTDE
-CSV), ``library`` with ``library_manifest`` and ``feature_cache``, ``policy_files``,
-``plan_json`` and ``pose_records`` (JSON documents), ``atomic_files``, ``file_lock``
-(the library's advisory lock), ``yaml_checks``.
+In the default pipeline a task file and a library are read here, the library's features
+come from its cache (``library_source.resolve_features`` takes a library in any form),
+and the closed loop's gains and periods come from ``simulation_config``.
+
+The modules:
+
+* ``task_files``: task files, the YAML form of a task, read and checked.
+* ``simulation_config``: the typed ``simulation:`` block: station, controller (the
+  default ``compiled`` one or the baseline's ``drake`` / ``pseudo_inverse``), monitor,
+  logger, planner system.
+* ``guidance_scripts``: the YAML scripts of ``drake-lfd record``.
+* ``yaml_checks``: checks shared by the YAML readers.
+* ``demonstration_logs``: UR5e joint logs as RTDE CSV, read, checked and written.
+* ``rtde_logs``: full RTDE recordings, the TCP-offset check against ``actual_TCP_pose``.
+* ``rosbag_logs``: joint logs from ROS 1 and ROS 2 bags (``sensor_msgs/JointState``).
+* ``log_import``: a demonstration from whatever log a user has (RTDE CSV or ROS bag).
+* ``library``: the demonstration library (Eq. 14), kept as a directory.
+* ``library_manifest``: a library's manifest, ``library.json``.
+* ``feature_cache``: a library's feature cache, ``cache/features.sqlite``.
+* ``library_source``: a library given in any form, as its features.
+* ``file_lock``: advisory file locks, so writers of one directory take turns.
+* ``policy_files``: Q-policy files (JSON).
+* ``plan_json``: the JSON form of a plan or a demonstration request (``plan --json``).
+* ``pose_records``: poses in JSON files.
+* ``json_lines``: results written as they come, one JSON record per line.
+* ``strict_json``: strict JSON, never ``NaN`` or ``Infinity``.
+* ``atomic_files``: atomic file writes.
+* ``trajectory_export``: a planned joint trajectory resampled, checked and written for a
+  real UR5e (``drake-lfd export``).
+* ``urscript``: the URScript program that runs an exported trajectory.
 """

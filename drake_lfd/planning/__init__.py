@@ -1,10 +1,44 @@
 """Layer 3, planning: from a concrete task and a library's features to a composition.
 
-``composition`` (legal actions from similarity), ``mdp`` (the one MDP: states,
-actions, rewards, penalties), ``exact_planner`` (shortest path), ``q_learning``
-(Algorithm 1 and 2), ``state_abstraction`` (the policy's task-independent key),
-``training``, ``random_tasks``, ``gym_env`` (the MDP as a Gymnasium environment),
-``options`` (the planning options, with the command line's defaults), ``planner``
-(plan a task: compose, map, time), ``replanning`` (a plan on the
-simulation clock, and replanning when the task changes).
+``planner.plan_composition`` is what the planner system (``systems.planner``) runs;
+paths below are relative to ``drake_lfd``. By default (``PlanningOptions()``) only
+compositions whose joint path passes the check are kept and the plan's joint path is
+timed by TOPP-RA; the paper's baseline (``PlanningOptions.paper_baseline()``) prices
+actions by Eq. 31 alone, skips the check and times the SE(3) plan with the timing law::
+
+    task + features --Eq. 19-21-->          legal actions  composition, span_index, stretching
+    legal actions   --search-->             composition    exact_planner or q_learning
+    composition     --joint-path check-->   executable     executable, refusals, robot.joint_path
+    composition     --Eq. 22-25, timing-->  PlanResult     planner, robot.path_timing
+                                                           (baseline: core.timing)
+    PlanResult      --simulation clock-->   ScheduledPlan  replanning
+
+The modules:
+
+* ``options``: ``PlanningOptions``, the planning options with the command line's
+  defaults, and ``paper_baseline()``.
+* ``planner``: plan a task: compose, map, time (``plan_composition``, ``PlanResult``),
+  or a demonstration request.
+* ``composition``: which demonstration may cover which span of a task, the legal
+  actions of Section 4.
+* ``span_index``: a library prepared for the legal-action table, with an exact
+  pre-filter.
+* ``stretching``: bounded stretching, a mapping whose correction is large against its
+  span is illegal.
+* ``problem_size``: the size of a planning problem, checked before anything is
+  allocated.
+* ``exact_planner``: the optimal composition as a shortest path.
+* ``executable``: the search that keeps only compositions whose joint path passes.
+* ``refusals``: refusals no choice of composition can change, decided first.
+* ``mdp``: the composition MDP: states, actions, transitions, rewards, penalties.
+* ``q_learning``: Q-learning of a general policy (Algorithm 1) and its greedy walk
+  (Algorithm 2).
+* ``state_abstraction``: the policy's task-independent key of a planning state.
+* ``training``: training a general policy on random tasks, and warm-start retraining.
+* ``random_tasks``: the paper's random training tasks and chained test tasks.
+* ``gym_env``: the MDP as a Gymnasium environment (optional extra).
+* ``refinement``: demonstration-guided trajectory optimization of a composed plan
+  (``--refine``).
+* ``replanning``: a plan on the simulation clock (``ScheduledPlan``), and replanning
+  when the task changes.
 """

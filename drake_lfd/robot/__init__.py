@@ -1,6 +1,32 @@
 """Layer 2, the robot: the UR5e as a MultibodyPlant and what is computed on it.
 
-``kinematics`` (forward kinematics of E, limits, FK of demonstrations), ``initial_ik``
-(the first joint configuration, elbow up), ``scene`` (obstacles, shells and table as
-geometry; signed distances).
+In the default pipeline the planner checks every plan in joint space and times the
+joint path before promising it; the paper's baseline skips both and times the SE(3)
+plan with ``drake_lfd.core.timing``::
+
+    SE(3) plan  --follow with the diff-IK law-->  joint path   joint_path, differential_ik_law
+    joint path  --TOPP-RA, the UR5e's limits-->   timed path   path_timing, toppra
+    timed path  --source, controller-->           UR5e motion  drake_lfd.systems (layer 5)
+
+The modules:
+
+* ``kinematics``: the UR5e model loaded into a MultibodyPlant; forward kinematics of
+  ``tool0`` and the end-effector frame E, joint limits.
+* ``dh_kinematics``: forward kinematics and Jacobian from the DH table, in plain floats
+  (the fast path of the joint-path check).
+* ``analytic_ik``: closed-form inverse kinematics, every branch reaching a flange pose.
+* ``initial_ik``: the joint configuration at the first critical configuration.
+* ``differential_ik_law``: the differential-IK law, one joint-velocity step toward a
+  desired end-effector motion (shared by the check and the baseline controller).
+* ``joint_path``: the plan-time joint-path check (``JointPathChecker``): a timed SE(3)
+  plan followed as the controller will follow it.
+* ``path_timing``: time-optimal timing of a plan's joint path under the UR5e's limits.
+* ``toppra``: TOPP-RA with each stage's linear program in closed form.
+* ``trajectory_optimization``: Drake's kinematic trajectory optimization of a joint path
+  in a work cell (``--refine``).
+* ``workcell``: the one description of the work cell: robot base, table, obstacles,
+  shells and tool.
+* ``scene``: the work cell's geometry on the plant; signed distances.
+* ``motion_bounds``: how far a robot geometry can move when the joints turn (bounds
+  that prune distance queries).
 """

@@ -1,9 +1,54 @@
 """Layer 5, the Drake LeafSystems, one per stage, thin wrappers over the layers below.
 
-``demo_recorder.DemoRecorder`` -> ``feature_library.FeatureLibrarySystem`` ->
-``planner.PlannerSystem`` -> ``plan_trajectory_source.PlanTrajectorySource`` ->
-``differential_ik.DifferentialIKController``; ``shell_monitor.ShellMonitor`` watches
-the scene; ``virtual_hand.VirtualHand`` guides the arm in a simulated demonstration.
+The default pipeline (``drake-lfd simulate``), one line per arrow, with the module of
+the system that makes the arrow's output (``drake_lfd.diagrams.pipeline`` wires them)::
+
+    library            --FeatureLibrarySystem-->       features      feature_library
+    features + task    --PlannerSystem-->              ScheduledPlan planner
+    plan + q_measured  --JointPathSource-->            chunk         joint_path_source
+    chunk + q_measured --JointTrajectoryController-->  q_command     joint_trajectory_controller
+    q_command          --Station-->                    q_measured    diagrams.station (layer 6)
+    plan               --TrialEnd-->                   end of run    trial_end
+    logged joints      --ShellMonitor-->               clearances    shell_monitor
+
+The planner system plans with ``drake_lfd.planning.planner.plan_composition``, checks
+the plan's joint path (``drake_lfd.robot.joint_path``) and times it with TOPP-RA
+(``drake_lfd.robot.path_timing``, ``drake_lfd.robot.toppra``). In the paper's baseline
+(``PlanningOptions.paper_baseline()``: Eq. 31's cost, no joint check) the plan is timed
+by the SE(3) timing law (``drake_lfd.core.timing``), and with ``controller.method:
+drake`` or ``pseudo_inverse`` two Python systems replace the two middle arrows::
+
+    plan               --PlanTrajectorySource-->       X_WE, V_WE    plan_trajectory_source
+    X_WE, V_WE         --DifferentialIKController-->   q_command     differential_ik
+
+Recording a simulated demonstration (``drake_lfd.diagrams.kinesthetic``)::
+
+    guidance pose      --VirtualHand-->                wrench on E   virtual_hand
+    measured joints    --DemoRecorder-->               samples       demo_recorder
+
+The modules:
+
+* ``demo_recorder``: :class:`DemoRecorder`, a joint logger that samples like the UR5e's
+  RTDE interface, its samples in the Context; :func:`add_joint_logger`,
+  :func:`demonstration_from_log`.
+* ``feature_library``: :class:`FeatureLibrarySystem`, a library's features
+  (:class:`LibraryFeatures`) on an output port.
+* ``planner``: :class:`PlannerSystem`, task and library in, a scheduled plan out
+  (:data:`NO_PLAN` when there is none).
+* ``joint_path_source``: :class:`JointPathSource`, the compiled loop's trajectory source:
+  the plan's joint path, in chunks.
+* ``joint_trajectory_controller``: :class:`JointTrajectoryController`, the plan's joint
+  path tracked by Drake's own C++ systems (the default controller).
+* ``plan_trajectory_source``: :class:`PlanTrajectorySource`, the scheduled plan as the
+  desired end-effector pose and velocity (baseline).
+* ``differential_ik``: :class:`DifferentialIKController`, desired end-effector motion to
+  joint position command, in Python (baseline).
+* ``shell_monitor``: :class:`ShellMonitor`, how close the robot came to each obstacle and
+  safety shell.
+* ``trial_end``: :class:`TrialEnd`, ends a run once its plan has been executed.
+* ``virtual_hand``: :class:`VirtualHand`, the spring-damper hand that guides the arm in
+  a simulated kinesthetic demonstration.
+* ``typed_ports``: type checks at ``DiagramBuilder.Connect`` for abstract ports.
 
 Every abstract port carries a model value of its real type; importing this package
 installs ``typed_ports.install_connect_check``, so ``DiagramBuilder.Connect`` refuses to
@@ -14,3 +59,36 @@ types, and every Python object is the one C++ type ``Value[object]``).
 from drake_lfd.systems.typed_ports import install_connect_check
 
 install_connect_check()
+
+from drake_lfd.systems.demo_recorder import (  # noqa: E402
+    DemoRecorder,
+    add_joint_logger,
+    demonstration_from_log,
+)
+from drake_lfd.systems.differential_ik import DifferentialIKController  # noqa: E402
+from drake_lfd.systems.feature_library import FeatureLibrarySystem, LibraryFeatures  # noqa: E402
+from drake_lfd.systems.joint_path_source import JointPathSource  # noqa: E402
+from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryController  # noqa: E402
+from drake_lfd.systems.plan_trajectory_source import PlanTrajectorySource  # noqa: E402
+from drake_lfd.systems.planner import NO_PLAN, PlannerSystem  # noqa: E402
+from drake_lfd.systems.shell_monitor import ShellMonitor  # noqa: E402
+from drake_lfd.systems.trial_end import TrialEnd  # noqa: E402
+from drake_lfd.systems.virtual_hand import VirtualHand  # noqa: E402
+
+__all__ = [
+    "DemoRecorder",
+    "add_joint_logger",
+    "demonstration_from_log",
+    "FeatureLibrarySystem",
+    "LibraryFeatures",
+    "PlannerSystem",
+    "NO_PLAN",
+    "JointPathSource",
+    "JointTrajectoryController",
+    "PlanTrajectorySource",
+    "DifferentialIKController",
+    "ShellMonitor",
+    "TrialEnd",
+    "VirtualHand",
+    "install_connect_check",
+]
