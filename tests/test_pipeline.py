@@ -11,7 +11,6 @@ from pydrake.systems.primitives import ConstantValueSource, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 from pydrake.common.value import AbstractValue
 
-from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.core.tasks import draw_trial
 from drake_lfd.diagrams.closed_loop import ClosedLoopRunner

@@ -15,7 +15,8 @@ import pytest
 from drake_lfd.io.library import Library
 
 TUTORIALS = Path(__file__).resolve().parent.parent / "tutorials"
-STEMS = ("01_transferring", "02_filling_pouring", "03_assembling", "04_record_your_own", "05_real_robot")
+STEMS = ("01_transferring", "02_filling_pouring", "03_assembling", "04_record_your_own", "05_real_robot",
+         "06_compose_your_own_diagram")
 # A notebook has no command line: this environment variable selects the short run.
 SHORT = "DRAKE_LFD_TUTORIAL_SHORT"
 REGENERATE = "jupytext --to ipynb tutorials/{stem}.py"
@@ -110,12 +111,24 @@ def _check_real_robot(summary, out):
     assert "movej(" in script and "stopj(" in script
 
 
+def _check_compose_your_own_diagram(summary, out):
+    _assert_files(out, ["summary.json"])
+    assert summary["success"], summary["failures"]
+    assert len(summary["composition"]) >= 1
+    # The hand-built Diagram with a pass-through system of the user's commands what
+    # build_pipeline's does, to the bit; the watchdog saw the command move.
+    assert summary["same_as_pipeline"] is True
+    assert 0.0 < summary["largest_command_step_rad"] < 0.1
+    assert summary["log_samples"] > 100
+
+
 CHECKS = {
     "01_transferring": _check_transferring,
     "02_filling_pouring": _check_filling_pouring,
     "03_assembling": _check_assembling,
     "04_record_your_own": _check_record_your_own,
     "05_real_robot": _check_real_robot,
+    "06_compose_your_own_diagram": _check_compose_your_own_diagram,
 }
 
 
@@ -143,6 +156,10 @@ def test_assembling(tmp_path, monkeypatch):
 
 def test_real_robot(tmp_path, monkeypatch):
     _check_real_robot(_run_script("05_real_robot", tmp_path, monkeypatch), tmp_path)
+
+
+def test_compose_your_own_diagram(tmp_path, monkeypatch):
+    _check_compose_your_own_diagram(_run_script("06_compose_your_own_diagram", tmp_path, monkeypatch), tmp_path)
 
 
 def test_record_your_own(tmp_path, monkeypatch):

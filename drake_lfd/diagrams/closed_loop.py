@@ -29,9 +29,7 @@ Not for: building the Diagram (``pipeline.py``), planning (``planning/``), the d
 from __future__ import annotations
 
 import copy
-import math
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 

@@ -44,12 +44,10 @@ Not for: the loop that runs trials with Meshcat recordings and task changes
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Mapping, NamedTuple
 
 import numpy as np
 from pydrake.common import RandomGenerator
-from pydrake.common.value import AbstractValue
 from pydrake.geometry import Meshcat
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import Simulator
@@ -64,7 +62,7 @@ from drake_lfd.io.plan_json import describe_uncovered
 from drake_lfd.io.simulation_config import COMPILED_METHOD, PipelineConfig, apply_simulator_config
 from drake_lfd.diagrams.judging import RunJudgement, judge_run
 from drake_lfd.diagrams.station import Station
-from drake_lfd.diagrams.trial_result import ClosedLoopResult, critical_errors_from_log
+from drake_lfd.diagrams.trial_result import ClosedLoopResult, read_trial
 from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.q_learning import QPolicy
@@ -72,7 +70,7 @@ from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.planning.span_index import prepared_library
 from drake_lfd.robot.initial_ik import InitialConfiguration, solve_initial_configuration
 from drake_lfd.robot.joint_path import JointPathChecker, JointPathLimits
-from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, NUM_JOINTS, UR5eKinematics
+from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene
 from drake_lfd.robot.workcell import Workcell, table_under_robot
 from drake_lfd.systems.differential_ik import DifferentialIKController
@@ -82,7 +80,7 @@ from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryControl
 from drake_lfd.systems.plan_trajectory_source import PlanTrajectorySource
 from drake_lfd.systems.planner import NO_PLAN, GivenPlan, PlannerSystem
 from drake_lfd.systems.shell_monitor import ShellMonitor
-from drake_lfd.systems.trial_end import TrialEnd, plan_end_time_s
+from drake_lfd.systems.trial_end import TrialEnd
 
 __all__ = ["Pipeline", "TrialStart", "build_pipeline", "joint_path_checker", "scheduled_plan_from_timed"]
 
@@ -412,40 +410,11 @@ class Pipeline(Diagram):
         changed. ``stop_reason``, the timings and ``initial_configuration`` are what the
         caller knows of the run (a Simulator's status message, clocks).
         """
-        scheduled = self.plan_output_port.Eval(context)
-        end = plan_end_time_s(scheduled)
-        if end is None:
-            return None
-        log = self.logger.FindLog(context)
-        t = log.sample_times().copy()
-        data = log.data()
-        q, qdot = data[:NUM_JOINTS].T.copy(), data[NUM_JOINTS:].T.copy()
-        now = context.get_time()
-        monitor = self.monitor
-        if monitor.measures_log:
-            clearances = monitor.clearances_with_log(context, t, q)
-        else:
-            clearances = monitor.clearances(monitor.GetMyContextFromRoot(context))
-        stopped_early = now < end - 1e-9
-        if stopped_early and not stop_reason:
-            stop_reason = f"the run ended at t = {now:.3f} s, before the plan's end at {end:.3f} s"
-        station = self.station
-        # The plant's state now, which the log would report at the next step, ends the
-        # samples the errors are read from (a con due at the run's very end).
-        h = station.time_step
-        t_next = (math.floor(now / h + 1e-9) + 1) * h
-        q_now = station.plant.GetPositions(station.plant.GetMyContextFromRoot(context), station.model)
-        t_all, q_all = (np.append(t, t_next), np.vstack([q, q_now])) if not len(t) or t_next > t[-1] else (t, q)
-        critical_errors = critical_errors_from_log(t_all, q_all, scheduled.due_times_s(),
-                                                   scheduled.timed.X_WE_critical(), now, self.kinematics, h)
-        return ClosedLoopResult(
-            t=t, q=q, qdot=qdot, critical_errors=critical_errors, clearances=tuple(clearances),
-            plan_start_time_s=scheduled.start_time_s, sim_time_s=now, wall_time_s=wall_time_s,
-            stopped_early=stopped_early, stop_reason=stop_reason, controller=self.config.controller.method,
-            q_initial=q[0].copy() if len(q) else np.full(NUM_JOINTS, math.nan),
-            initial_configuration=initial_configuration, X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
-            velocity_limits=self.kinematics.velocity_limits(), setup_wall_time_s=setup_wall_time_s,
-            cpu_time_s=cpu_time_s, path_constraints=tuple(scheduled.result.task.path_constraints))
+        return read_trial(context, plan=self.plan_output_port.Eval(context), logger=self.logger,
+                          monitor=self.monitor, station=self.station, kinematics=self.kinematics,
+                          controller=self.config.controller.method, stop_reason=stop_reason,
+                          wall_time_s=wall_time_s, cpu_time_s=cpu_time_s, setup_wall_time_s=setup_wall_time_s,
+                          initial_configuration=initial_configuration)
 
     def trial_judgement(self, context: Context) -> RunJudgement:
         """The verdict on the run in ``context`` (the success criteria of

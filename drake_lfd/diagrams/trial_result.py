@@ -6,6 +6,9 @@ what :mod:`drake_lfd.diagrams.judging` judges; :func:`critical_errors_from_log` 
 each critical configuration's error at its due time from the joint-state log (linear
 between the log's samples), by forward kinematics of E, independently of the controller.
 
+:func:`read_trial` reads a run off its Context (the plan, the joint log, the monitor's
+records), for the pipeline and for Diagrams composed by hand.
+
 Not for: running a simulation (``closed_loop.py``, ``pipeline.py``) or judging one
 (``judging.py``).
 """
@@ -18,11 +21,14 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.math import RigidTransform
 
+from drake_lfd.diagrams.station import Station
+from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.initial_ik import InitialConfiguration
 from drake_lfd.robot.kinematics import NUM_JOINTS, UR5eKinematics
-from drake_lfd.systems.shell_monitor import BoxClearance
+from drake_lfd.systems.shell_monitor import BoxClearance, ShellMonitor
+from drake_lfd.systems.trial_end import plan_end_time_s
 
-__all__ = ["CriticalError", "ClosedLoopResult", "critical_errors_from_log", "pose_errors"]
+__all__ = ["CriticalError", "ClosedLoopResult", "critical_errors_from_log", "pose_errors", "read_trial"]
 
 
 @dataclass(frozen=True)
@@ -200,3 +206,56 @@ def critical_errors_from_log(t: np.ndarray, q: np.ndarray, due_times_s, X_WE_cri
         position, rotation = pose_errors(kinematics.X_WE(q_due), X_desired)
         errors.append(CriticalError(con, t_due, position, rotation, q_due))
     return tuple(errors)
+
+
+def read_trial(context, *, plan: ScheduledPlan, logger, monitor: ShellMonitor, station: Station,
+               kinematics: UR5eKinematics | None = None, controller: str = "", stop_reason: str = "",
+               wall_time_s: float = 0.0, cpu_time_s: float = 0.0, setup_wall_time_s: float = 0.0,
+               initial_configuration: InitialConfiguration | None = None) -> ClosedLoopResult | None:
+    """What the run in ``context`` (a root Context) did so far, read off the Context; None
+    when ``plan`` (the plan in force) is not a plan.
+
+    ``logger`` is the ``VectorLogSink`` of the station's ``ur5e.state`` (Drake's
+    ``LogVectorOutput``), ``monitor`` the ShellMonitor of the scene, ``station`` the
+    station; the pipeline's :meth:`~drake_lfd.diagrams.pipeline.Pipeline.trial_result`
+    passes its own, and a Diagram composed by hand passes its. The result holds the
+    joint log, each critical configuration's error at its due time
+    (:func:`critical_errors_from_log`), the closest approach to every obstacle and shell
+    (the monitor's records, the logged samples measured too) and the trial's path
+    constraints. The Context is not changed. ``controller``, ``stop_reason``, the timings
+    and ``initial_configuration`` are what the caller knows of the run.
+    """
+    end = plan_end_time_s(plan)
+    if end is None:
+        return None
+    if kinematics is None:
+        kinematics = UR5eKinematics(X_WB=station.X_WB, X_tool0_E=station.X_tool0_E)
+    log = logger.FindLog(context)
+    t = log.sample_times().copy()
+    data = log.data()
+    q, qdot = data[:NUM_JOINTS].T.copy(), data[NUM_JOINTS:].T.copy()
+    now = context.get_time()
+    if monitor.measures_log:
+        clearances = monitor.clearances_with_log(context, t, q)
+    else:
+        clearances = monitor.clearances(monitor.GetMyContextFromRoot(context))
+    stopped_early = now < end - 1e-9
+    if stopped_early and not stop_reason:
+        stop_reason = f"the run ended at t = {now:.3f} s, before the plan's end at {end:.3f} s"
+    # The plant's state now, which the log would report at the next step, ends the
+    # samples the errors are read from (a con due at the run's very end).
+    h = station.time_step
+    t_next = (math.floor(now / h + 1e-9) + 1) * h
+    q_now = station.plant.GetPositions(station.plant.GetMyContextFromRoot(context), station.model)
+    t_all, q_all = (np.append(t, t_next), np.vstack([q, q_now])) if not len(t) or t_next > t[-1] else (t, q)
+    critical_errors = critical_errors_from_log(t_all, q_all, plan.due_times_s(), plan.timed.X_WE_critical(), now,
+                                               kinematics, h)
+    return ClosedLoopResult(
+        t=t, q=q, qdot=qdot, critical_errors=critical_errors, clearances=tuple(clearances),
+        plan_start_time_s=plan.start_time_s, sim_time_s=now, wall_time_s=wall_time_s,
+        stopped_early=stopped_early, stop_reason=stop_reason, controller=controller,
+        q_initial=q[0].copy() if len(q) else np.full(NUM_JOINTS, math.nan),
+        initial_configuration=initial_configuration, X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
+        velocity_limits=kinematics.velocity_limits(), setup_wall_time_s=setup_wall_time_s,
+        cpu_time_s=cpu_time_s, path_constraints=tuple(plan.result.task.path_constraints))
+

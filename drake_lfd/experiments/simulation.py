@@ -32,7 +32,7 @@ from drake_lfd.diagrams.judging import judge_run
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
 from drake_lfd.robot.kinematics import UR5eKinematics
-from drake_lfd.io.plan_json import composition_json, critical_configurations_json, describe_uncovered
+from drake_lfd.io.plan_json import composition_json, critical_configurations_json
 from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.problem_size import check_problem_size

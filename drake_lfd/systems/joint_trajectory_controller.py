@@ -260,7 +260,6 @@ class JointTrajectoryController(Diagram):
         dt, K = self.time_step, self.position_gain
         builder = DiagramBuilder()
         add = builder.AddNamedSystem
-        size = chunk_size(n, M)
         identity = np.eye(n)
         stack = np.kron(np.ones((1, M)), identity)  # (n, nM): the sum over a chunk's samples
         split = add("chunk_split", Demultiplexer([1, n, n * M]))
