@@ -112,7 +112,7 @@ def _check_real_robot(summary, out):
 
 
 def _check_compose_your_own_diagram(summary, out):
-    _assert_files(out, ["summary.json"])
+    _assert_files(out, ["compose_joints.png", "summary.json"])
     assert summary["success"], summary["failures"]
     assert len(summary["composition"]) >= 1
     # The hand-built Diagram with a pass-through system of the user's commands what

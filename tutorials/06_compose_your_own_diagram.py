@@ -53,7 +53,7 @@ from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.core.tasks import draw_trial
 from drake_lfd.diagrams import Station, build_pipeline, joint_path_checker, judge_run
 from drake_lfd.diagrams.trial_result import read_trial
-from drake_lfd.experiments.notebooks import parse_tutorial_arguments
+from drake_lfd.experiments.notebooks import parse_tutorial_arguments, show
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME
@@ -77,7 +77,7 @@ SIMS = scenarios_directory()
 # %%
 parser = argparse.ArgumentParser(description="Tutorial 6: compose your own Diagram")
 parser.add_argument("--out", default=str(Path("tutorials_out") / NAME), metavar="DIR",
-                    help="folder for the summary (created)")
+                    help="folder for the figure and the summary (created)")
 parser.add_argument("--short", action="store_true", help="the same one trial")
 parser.add_argument("--seed", type=int, default=0, metavar="S", help="the trial's seed")
 args, short = parse_tutorial_arguments(parser)
@@ -219,6 +219,31 @@ judgement = judge_run(run)
 print(f"success: {judgement.success}; worst error at a critical configuration "
       f"{1e3 * max(e.position_m for e in run.critical_errors):.3f} mm; closest approach "
       f"{1e3 * run.min_shell_distance_m:.1f} mm; largest command step {watchdog.largest_step(context):.4f} rad")
+
+# %% [markdown]
+# The joints the arm took (the log) against the joint path the trajectory source handed
+# the controller (from the source's own Context: `JointPathSource.joint_path`).
+
+# %%
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+t_path, q_path = source.joint_path(context)
+figure, axes = plt.subplots(figsize=(8, 4))
+for j in range(6):
+    line, = axes.plot(run.t, run.q[:, j], label=f"q{j + 1}")
+    axes.plot(t_path, q_path[:, j], "--", color=line.get_color(), linewidth=0.8)
+axes.set_xlabel("t (s)")
+axes.set_ylabel("joint position (rad)")
+axes.set_title("measured (solid) and desired joint path (dashed)")
+axes.legend(ncol=6, fontsize=8)
+figure.tight_layout()
+joints_png = out / "compose_joints.png"
+figure.savefig(joints_png, dpi=100)
+plt.close(figure)
+show(joints_png)
 
 # %% [markdown]
 # ## 6. The same run as `build_pipeline`'s Diagram
