@@ -6,6 +6,8 @@ it from the Context alone; so ``MonteCarloSimulation`` runs it, and Contexts adv
 turns do not disturb each other.
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 from pydrake.common import RandomGenerator
@@ -13,7 +15,7 @@ from pydrake.systems.analysis import MonteCarloSimulation, Simulator
 
 import drake_lfd
 from drake_lfd.core.resources import scenarios_directory
-from drake_lfd.core.tasks import draw_trial
+from drake_lfd.core.tasks import PathConstraint, draw_trial
 from drake_lfd.experiments.simulation import TrialRunner
 from drake_lfd.io.library import Library, library_features
 
@@ -117,6 +119,23 @@ def test_trial_succeeded_gives_the_verdict_simulate_gives(pipeline, task):
         assert pipeline.trial_succeeded(pipeline, simulator.get_context()) == float(outcome.success)
         assert [s.demo for s in outcome.plan.composition] == [
             s.demo for s in pipeline.plan_output_port.Eval(simulator.get_context()).result.composition]
+
+
+def test_judge_run_reads_the_trials_path_constraints_from_the_run(pipeline, task):
+    simulator = Simulator(pipeline)
+    pipeline.prepare_trial(simulator.get_mutable_context(), draw_trial(task, 0))
+    simulator.AdvanceTo(60.0)
+    run = pipeline.trial_result(simulator.get_context())
+    assert drake_lfd.judge_run(run).success
+    # The same run, its trial holding the tool within 0.1 deg of level from con_1 to
+    # con_4 (the transferring task tilts the cup): judged failed without being told again.
+    level = PathConstraint("orientation", 1, 4, np.zeros(3), np.radians(0.1))
+    strict = dataclasses.replace(run, path_constraints=(level,))
+    judgement = drake_lfd.judge_run(strict)
+    assert not judgement.success
+    assert any(failure.startswith("path constraint con_1..con_4") for failure in judgement.failures)
+    # Constraints passed explicitly replace the run's own.
+    assert drake_lfd.judge_run(strict, path_constraints=()).success
 
 
 def test_a_run_stopped_before_the_plan_is_executed_is_not_a_success(pipeline, task):

@@ -264,7 +264,7 @@ class Pipeline(Diagram):
             # not in the first trial's plan; every plan of these features reuses it.
             prepared_library(list(features.values()), planning.tolerances)
         else:
-            given = builder.AddNamedSystem("given_plan", GivenPlan(scheduled_plan_from_timed(plan, config.settle_s)))
+            given = GivenPlan.AddToBuilder(builder=builder, plan=scheduled_plan_from_timed(plan, config.settle_s))
             plan_port = given.plan_output_port
         controller_plant = station.controller_plant
         frame_E = controller_plant.GetFrameByName(END_EFFECTOR_FRAME_NAME)

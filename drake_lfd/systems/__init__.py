@@ -34,7 +34,7 @@ The modules:
 * ``feature_library``: :class:`FeatureLibrarySystem`, a library's features
   (:class:`LibraryFeatures`) on an output port.
 * ``planner``: :class:`PlannerSystem`, task and library in, a scheduled plan out
-  (:data:`NO_PLAN` when there is none).
+  (:data:`NO_PLAN` when there is none); :class:`GivenPlan`, a fixed plan in its place.
 * ``joint_path_source``: :class:`JointPathSource`, the compiled loop's trajectory source:
   the plan's joint path, in chunks.
 * ``joint_trajectory_controller``: :class:`JointTrajectoryController`, the plan's joint
@@ -70,7 +70,7 @@ from drake_lfd.systems.feature_library import FeatureLibrarySystem, LibraryFeatu
 from drake_lfd.systems.joint_path_source import JointPathSource  # noqa: E402
 from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryController  # noqa: E402
 from drake_lfd.systems.plan_trajectory_source import PlanTrajectorySource  # noqa: E402
-from drake_lfd.systems.planner import NO_PLAN, PlannerSystem  # noqa: E402
+from drake_lfd.systems.planner import NO_PLAN, GivenPlan, PlannerSystem  # noqa: E402
 from drake_lfd.systems.shell_monitor import ShellMonitor  # noqa: E402
 from drake_lfd.systems.trial_end import TrialEnd  # noqa: E402
 from drake_lfd.systems.virtual_hand import VirtualHand  # noqa: E402
@@ -83,6 +83,7 @@ __all__ = [
     "LibraryFeatures",
     "PlannerSystem",
     "NO_PLAN",
+    "GivenPlan",
     "JointPathSource",
     "JointTrajectoryController",
     "PlanTrajectorySource",

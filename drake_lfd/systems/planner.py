@@ -235,3 +235,8 @@ class GivenPlan(LeafSystem):
         self._state_index = self.DeclareAbstractState(AbstractValue.Make(plan))
         self.plan_output_port = self.DeclareStateOutputPort("plan", self._state_index)
 
+    @staticmethod
+    def AddToBuilder(*, builder: DiagramBuilder, plan: ScheduledPlan, name: str = "given_plan") -> "GivenPlan":
+        """Adds a GivenPlan of ``plan`` named ``name``."""
+        return builder.AddNamedSystem(name, GivenPlan(plan))
+
