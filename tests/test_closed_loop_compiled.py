@@ -140,9 +140,9 @@ def _controller_and_path():
 def _fix_chunk(controller, context, t, q, k):
     """Fixes the chunk holding controller instant k, as the joint-path source puts it out."""
     M, dt = controller.chunk_samples, controller.time_step
-    first = (k // M) * M
+    first = (k // M) * M  # the controller counts instants from t = 0
     w = feed_forward_samples(t, q, dt, controller.position_gain, controller.lead_s, first, M)
-    controller.chunk_input_port.FixValue(context, np.concatenate([[first * dt], q[0], w.ravel()]))
+    controller.chunk_input_port.FixValue(context, np.concatenate([q[0], w.ravel()]))
 
 
 def _step(controller, context):

@@ -227,13 +227,15 @@ def test_every_plant_output_port_is_exported_with_the_model_prefix():
     assert len(poses) == plant.num_bodies()
 
 
+@pytest.mark.parametrize("gravity_compensation", ["inverse_dynamics", "arm_weightless"])
 @pytest.mark.parametrize("q", [Q_HOME, np.array([0.3, -0.4, 0.3, -1.0, -1.2, 0.5])])
-def test_an_arm_told_to_hold_still_stays_within_a_tenth_of_a_millimetre(q):
-    # Gravity is off on the arm: nothing pulls it from the held pose (with the arm
-    # nearly outstretched; with gravity on and no compensation the tool sags 8 and 13 mm).
+def test_an_arm_told_to_hold_still_stays_within_a_tenth_of_a_millimetre(q, gravity_compensation):
+    # Either way the drive carries the arm's weight: nothing pulls it from the held pose
+    # (with the arm nearly outstretched; with gravity on and no compensation the tool
+    # sags 8 and 13 mm).
     from drake_lfd.robot.kinematics import UR5eKinematics
 
-    station = mut.build_station()
+    station = mut.build_station(config=StationConfig(gravity_compensation=gravity_compensation))
     context = station.CreateDefaultContext()
     station.set_initial_positions(context, q)
     station.GetInputPort("ur5e.position_command").FixValue(context, q)
@@ -243,3 +245,12 @@ def test_an_arm_told_to_hold_still_stays_within_a_tenth_of_a_millimetre(q):
     drift_m = np.linalg.norm(kinematics.X_WE(q_held).translation() - kinematics.X_WE(q).translation())
     assert drift_m < 1e-4
     assert np.abs(station.GetOutputPort("ur5e.velocity_measured").Eval(context)).max() < 1e-4
+
+
+def test_gravity_compensation_is_inverse_dynamics_by_default_and_weightless_on_request(tmp_path):
+    names = {system.get_name() for system in mut.build_station().GetSystems()}
+    assert "gravity_compensation" in names
+    weightless = mut.build_station(config=StationConfig(gravity_compensation="arm_weightless"))
+    assert "gravity_compensation" not in {system.get_name() for system in weightless.GetSystems()}
+    with pytest.raises(InputError, match="simulation.station.gravity_compensation"):
+        PipelineConfig(station=StationConfig(gravity_compensation="floating")).checked()

@@ -29,6 +29,7 @@ Not for: building the Diagram (``pipeline.py``), planning (``planning/``), the d
 from __future__ import annotations
 
 import copy
+import dataclasses
 import time
 from pathlib import Path
 from typing import Sequence
@@ -218,17 +219,20 @@ class ClosedLoopRunner:
             if status.reason() == status.ReturnReason.kReachedTerminationCondition:
                 stop_reason = status.message()
                 break
-        wall_time_s, cpu_time_s = time.perf_counter() - wall_start, time.process_time() - cpu_start
         scheduled = pipeline.plan_output_port.Eval(context)
+        end = plan_end_time_s(scheduled)
+        early = end is not None and context.get_time() < end - 1e-9
+        # Reading the run off the Context (the monitor measures the logged samples there)
+        # is part of the closed loop's time.
+        result = pipeline.trial_result(context, stop_reason=stop_reason if early else "",
+                                       setup_wall_time_s=setup_wall_time_s,
+                                       initial_configuration=start.initial_configuration)
+        result = dataclasses.replace(result, wall_time_s=time.perf_counter() - wall_start,
+                                     cpu_time_s=time.process_time() - cpu_start)
         if recording:
             visualizer.StopRecording()
             visualizer.PublishRecording()
             atomic_write_bytes(Path(record_html), self.meshcat.StaticHtml().encode())
-        end = plan_end_time_s(scheduled)
-        early = end is not None and context.get_time() < end - 1e-9
-        result = pipeline.trial_result(
-            context, stop_reason=stop_reason if early else "", wall_time_s=wall_time_s, cpu_time_s=cpu_time_s,
-            setup_wall_time_s=setup_wall_time_s, initial_configuration=start.initial_configuration)
         return scheduled, result
 
 

@@ -17,14 +17,19 @@ gear, commanded at a fixed rate):
   treats them implicitly (SAP), so stiff gains are stable at any step. The contact
   approximation is ``kSap``: with ``kTamsi`` PD-controlled actuators silently do
   nothing.
-- No gravity on the arm (``plant.set_gravity_enabled(model, False)``, as the manipulation
-  course's station does for its position-controlled arms): the servo carries the arm's
-  weight, perfectly. It replaced ``InverseDynamics`` in gravity-compensation mode on a
-  second plant, fed forward to the actuation input: on ``bench_closed_loop.py`` both
-  tracked identically to 1e-5 mm (0.71761 mm max, 0.16747 mm rms along the path,
-  0.02415 mm at the critical configurations, 5 ms plant; also at 1 ms and with the
-  Python controller), and this is one call instead of two systems and a plant. The
-  actuation input is left unconnected (zero).
+- Gravity compensation on the actuation input, as a UR5e's controller does it:
+  ``InverseDynamics`` in gravity-compensation mode on a separate kinematics-only plant of
+  the same arm (same ``X_WB``: gravity depends on how the base is mounted), so the links
+  keep their weight and the actuators' effort limits see it. ``InverseDynamics`` only
+  refers to that plant, so the Diagram owns it through a ``SharedPointerSystem`` (as the
+  manipulation course's ``MakeHardwareStation`` does). The other way,
+  ``StationConfig.gravity_compensation: arm_weightless``, switches gravity off on the arm
+  (``plant.set_gravity_enabled(model, False)``, as the manipulation course's station does
+  for its position-controlled arms): on ``bench_closed_loop.py`` both tracked identically
+  to 1e-5 mm (0.72 mm max, 0.17 mm rms along the path, 5 ms plant; also at 1 ms and
+  with the Python controller), and a weightless arm costs about 15 % less simulation time
+  (the gravity torques are not computed every step), but its actuators never carry the
+  arm's weight, so an effort limit cannot bind as on the robot.
 - ``StateInterpolatorWithDiscreteDerivative`` turning joint position commands, sampled
   every ``command_period`` s, into the desired state (position and finite-difference
   velocity) of the PD controllers.
@@ -58,6 +63,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
 from pydrake.multibody.tree import JointActuatorIndex, ModelInstanceIndex, PdControllerGains
 from pydrake.visualization import ApplyVisualizationConfig, VisualizationConfig
+from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.lcm import ApplyLcmBusConfig
 from pydrake.systems.primitives import Demultiplexer, SharedPointerSystem, StateInterpolatorWithDiscreteDerivative
@@ -187,8 +193,9 @@ class Station(Diagram):
         plant, scene_graph = AddMultibodyPlant(config.plant, builder)
         model = add_ur5e(plant, X_WB=self.X_WB, X_tool0_E=self.X_tool0_E, model_name=name)
         configure_ur5e_drive(plant, model, config.drive)
-        # The servo carries the arm's weight (see the module docstring).
-        plant.set_gravity_enabled(model, False)
+        weightless = config.gravity_compensation == "arm_weightless"
+        if weightless:  # the servo carries no weight (see the module docstring)
+            plant.set_gravity_enabled(model, False)
         scene = add_scene(plant, scene_graph, model=model, obstacles=self.obstacles,
                           safety_shells=self.safety_shells, table=self.table, tool=workcell.tool)
         plant.Finalize()
@@ -200,17 +207,24 @@ class Station(Diagram):
         controller_plant = MultibodyPlant(time_step=0.0)
         controller_model = add_ur5e(controller_plant, X_WB=self.X_WB, X_tool0_E=self.X_tool0_E, model_name=name)
         controller_plant.Finalize()
-        # The Diagram keeps the controller plant alive (the controllers wired outside only
-        # refer to it).
+        # The Diagram keeps the controller plant alive (InverseDynamics and the controllers
+        # wired outside only refer to it).
         SharedPointerSystem.AddToBuilder(builder, controller_plant)
 
-        # Drive: command -> desired state -> PD actuators.
+        # Drive: command -> desired state -> PD actuators; gravity compensation fed forward.
         interpolator = builder.AddNamedSystem(
             "position_command_interpolator",
             StateInterpolatorWithDiscreteDerivative(NUM_JOINTS, config.command_period,
                                                     suppress_initial_transient=True),
         )
         builder.Connect(interpolator.get_output_port(), plant.get_desired_state_input_port(model))
+        if not weightless:
+            gravity_compensation = builder.AddNamedSystem(
+                "gravity_compensation",
+                InverseDynamics(controller_plant, InverseDynamics.InverseDynamicsMode.kGravityCompensation))
+            builder.Connect(plant.get_state_output_port(model), gravity_compensation.get_input_port_estimated_state())
+            builder.Connect(gravity_compensation.get_output_port_generalized_force(),
+                            plant.get_actuation_input_port(model))
 
         state_split = builder.AddNamedSystem("state_split", Demultiplexer([NUM_JOINTS, NUM_JOINTS]))
         builder.Connect(plant.get_state_output_port(model), state_split.get_input_port(0))

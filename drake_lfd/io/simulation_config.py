@@ -60,6 +60,7 @@ __all__ = [
     "CLOSED_LOOP_TIME_STEP_S",
     "COMPILED_METHOD",
     "CONTROLLER_METHODS",
+    "GRAVITY_COMPENSATIONS",
 ]
 
 # The plant step of a bare station (fine enough for any use) and of a closed-loop run
@@ -72,6 +73,9 @@ CLOSED_LOOP_TIME_STEP_S = 5e-3
 # systems, ``systems/joint_trajectory_controller.py``), and the Python task-space
 # controller with Drake's differential-IK law or the paper's pseudo-inverse (Eq. 35-38).
 COMPILED_METHOD = "compiled"
+
+# How the drive carries the arm's weight (StationConfig.gravity_compensation).
+GRAVITY_COMPENSATIONS = ("inverse_dynamics", "arm_weightless")
 CONTROLLER_METHODS = (COMPILED_METHOD, "drake", "pseudo_inverse")
 
 # The discrete contact approximations that support the drive's PD-controlled actuators
@@ -256,6 +260,13 @@ class StationConfig(_PicklableStructs):
         Drake's sampled output ports for the plant (its step an unrestricted update);
         off: the step is a discrete update and the outputs follow the current state
         (``station.py``). ``plant.use_sampled_output_ports``.
+    gravity_compensation : {"inverse_dynamics", "arm_weightless"}
+        How the drive carries the arm's weight: ``inverse_dynamics`` (the default), the
+        gravity torques of a second, kinematics-only plant fed forward to the actuation,
+        as a UR5e's controller does, so the links keep their weight and the actuators'
+        effort limits see it; ``arm_weightless``, gravity switched off on the arm
+        (``MultibodyPlant.set_gravity_enabled``, as the manipulation course's station
+        does), one call and about 15 % less simulation time. Both track identically.
 
     ``time_step``, ``visualizer_publish_period`` and ``sampled_output_ports`` are stored
     in the structs; given with the struct to the constructor, they win.
@@ -270,14 +281,15 @@ class StationConfig(_PicklableStructs):
     visualizer_publish_period: float = _StructField("visualization", "publish_period")
     model_name: str = "ur5e"
     sampled_output_ports: bool = _StructField("plant", "use_sampled_output_ports")
+    gravity_compensation: str = "inverse_dynamics"
 
     def __eq__(self, other):
         if not isinstance(other, StationConfig):
             return NotImplemented
         return (_struct_fields(self.plant) == _struct_fields(other.plant)
                 and _struct_fields(self.visualization) == _struct_fields(other.visualization)
-                and (self.command_period, self.drive, self.model_name)
-                == (other.command_period, other.drive, other.model_name))
+                and (self.command_period, self.drive, self.model_name, self.gravity_compensation)
+                == (other.command_period, other.drive, other.model_name, other.gravity_compensation))
 
 
 @dataclasses.dataclass
@@ -403,6 +415,10 @@ class PipelineConfig(_PicklableStructs):
 
         positive(self.station.time_step, "station.time_step")
         _check_plant_config(self.station.plant, file)
+        if self.station.gravity_compensation not in GRAVITY_COMPENSATIONS:
+            raise InputError(f"must be one of {', '.join(GRAVITY_COMPENSATIONS)}, got "
+                             f"{self.station.gravity_compensation!r}", file=file,
+                             field="simulation.station.gravity_compensation")
         _check_simulator_config(self.simulator, file)
         positive(self.controller.time_step, "controller.time_step")
         positive(self.monitor.period, "monitor.period")

@@ -7,7 +7,7 @@ measured positions on ``q_measured``. At initialization it latches the arm's pos
 feed-forward samples ``w_k``, one per controller period up to the path's end
 (:func:`~drake_lfd.systems.joint_trajectory_controller.feed_forward_samples`), are a
 cache entry of the plan and ``q_0``: they live in the Context and are computed once a
-run. Its ``chunk`` output is its discrete state, ``[t_start, q_0, w_k .. w_(k+M-1)]``,
+run. Its ``chunk`` output is its discrete state, ``[q_0, w_k .. w_(k+M-1)]``,
 written at initialization and then once every ``M`` controller periods, at the last
 instant of a chunk, with the next one (a discrete update: the controller's update at the
 same instant still reads the chunk it is in). So no Python runs in the 100 Hz loop, and
@@ -120,7 +120,7 @@ class JointPathSource(LeafSystem):
         """The chunk of instants ``first .. first + M - 1``."""
         w = self._path_cache.Eval(context)[2]
         rows = np.minimum(np.arange(first, first + self._samples), len(w) - 1)
-        return np.concatenate([[first * self._time_step], q_start, w[rows].ravel()])
+        return np.concatenate([q_start, w[rows].ravel()])
 
     def _latch_start(self, context, state):
         q_start = np.array(self.q_measured_input_port.Eval(context), dtype=float)
@@ -131,6 +131,11 @@ class JointPathSource(LeafSystem):
         # After every unrestricted initialization: the planner's plan and q_0 are in.
         q_start = context.get_abstract_state(self._start_index).get_value()
         first = int(round(context.get_time() / self._time_step))
+        if first % self._samples:
+            # The controller counts a chunk's instants from its own start (its Context's
+            # default state): a run starts at a chunk's first instant, t = 0.
+            raise RuntimeError(f"a compiled run starts at a multiple of {self._samples * self._time_step:g} s "
+                               f"(t = 0); this one starts at t = {context.get_time():g} s")
         discrete_state.set_value(self._chunk_index, self._chunk(context, q_start, first))
         return EventStatus.Succeeded()
 

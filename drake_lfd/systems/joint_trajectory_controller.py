@@ -190,8 +190,8 @@ def joint_trajectory_of_plan(scheduled: ScheduledPlan, q_initial: np.ndarray,
 
 
 def chunk_size(num_joints: int, samples: int = CHUNK_SAMPLES) -> int:
-    """Length of a chunk vector: ``[t_start, q_0 (n), w_0 .. w_(M-1) (n each)]``."""
-    return 1 + num_joints + num_joints * samples
+    """Length of a chunk vector: ``[q_0 (n), w_0 .. w_(M-1) (n each)]``."""
+    return num_joints + num_joints * samples
 
 
 def feed_forward_samples(t, q, time_step: float, position_gain: float, lead_s: float, first: int,
@@ -220,15 +220,16 @@ class JointTrajectoryController(Diagram):
         - q_command
 
     ``q_measured`` and ``q_command`` are (6,) joint positions in UR joint order.
-    ``chunk`` is the path's next samples, :func:`chunk_size` long: ``[t_start, q_0,
-    w_0 .. w_(M-1)]``, ``w_i`` the feed-forward and feedback term (module docstring) of
-    the controller instant ``t_start + i dt`` and ``q_0`` the run's initial command (the
-    arm's positions at its start), as :class:`~drake_lfd.systems.joint_path_source.JointPathSource`
-    puts it out. At each update the controller picks the chunk's sample of the clock's
-    instant with Drake primitives alone (a one-hot of the instant from the clock, and a
-    gate ``relu(w + B (h - 1)) - relu(-w + B (h - 1))`` that passes ``w`` exactly when
-    ``h = 1`` and gives exactly 0 when ``h = 0``), so the 100 Hz loop evaluates only C++
-    systems and the command is the same to the bit as from a table of all samples.
+    ``chunk`` is the path's next samples, :func:`chunk_size` long: ``[q_0, w_0 ..
+    w_(M-1)]``, ``w_i`` the feed-forward and feedback term (module docstring) of the
+    chunk's i-th controller instant and ``q_0`` the run's initial command (the arm's
+    positions at its start), as :class:`~drake_lfd.systems.joint_path_source.JointPathSource`
+    puts it out. At each update the controller picks the sample of its instant with Drake
+    primitives alone: a one-hot ``h`` of the instant's place in its chunk (a permutation
+    state that turns once a period, from the run's start at t = 0), and a gate
+    ``relu(w + B (h - 1)) - relu(-w + B (h - 1))`` that passes ``w`` exactly when ``h = 1``
+    and gives exactly 0 when ``h = 0``. So the 100 Hz loop evaluates only C++ systems, and
+    the command is the same to the bit as from a table of all samples.
 
     Parameters
     ----------
@@ -262,24 +263,22 @@ class JointTrajectoryController(Diagram):
         add = builder.AddNamedSystem
         identity = np.eye(n)
         stack = np.kron(np.ones((1, M)), identity)  # (n, nM): the sum over a chunk's samples
-        split = add("chunk_split", Demultiplexer([1, n, n * M]))
-        # The controller's clock: x <- x + dt at every controller instant (the update at an
-        # instant reads that instant's time), put out as the arguments of the instant's
-        # ramps, S (x_i + 1/2) - 1 and S (x_i - 1/2), x_i = (x - t_start) / dt - i.
-        S = 4.0  # the ramps below are exactly 0 or -1 / 1 for x_i within 1/(2S) of an integer
-        offsets = np.arange(M, dtype=float)
-        clock = add("clock", AffineSystem(
-            A=np.eye(1), B=np.zeros((1, 1)), f0=[dt], C=np.full((2 * M, 1), S / dt), D=np.full((2 * M, 1), -S / dt),
-            y0=np.concatenate([S * (0.5 - offsets) - 1.0, S * (-0.5 - offsets)]), time_period=dt))
-        # ramp_a,i - 1 in [-1, 0] and ramp_b,i in [0, 1]: h_i - 1 = (ramp_a,i - 1) - ramp_b,i.
-        ramps = add("instant_ramps", Saturation(np.concatenate([-np.ones(M), np.zeros(M)]),
-                                                np.concatenate([np.zeros(M), np.ones(M)])))
-        ramps_and_samples = add("ramps_and_samples", Multiplexer([2 * M, n * M]))
+        split = add("chunk_split", Demultiplexer([n, n * M]))
+        # The instant's place in its chunk as a one-hot h (exactly 0 or 1), put out as
+        # h - 1: a permutation state that turns once a period. y = x + e_0 - 1 with
+        # x <- P x + (P e_0 - e_0), x = 0 at the run's start (every Context's default):
+        # y_k = e_(k mod M) - 1, in exact arithmetic (every value is 0 or +-1).
+        rotate = np.roll(np.eye(M), 1, axis=0)  # e_i -> e_(i+1 mod M)
+        first = np.eye(M)[:, 0]
+        instant = add("instant_in_chunk", AffineSystem(
+            A=rotate, B=np.zeros((M, 0)), f0=rotate @ first - first, C=np.eye(M), D=np.zeros((M, 0)),
+            y0=first - 1.0, time_period=dt))
+        instant_and_samples = add("instant_and_samples", Multiplexer([M, n * M]))
         # The gate: [w_i + B (h_i - 1); -w_i + B (h_i - 1)] per sample and joint: +-w_i
-        # exactly for the instant's sample (its level is 0 + 0), below -B + |w| < 0 for
-        # the others.
+        # exactly for the instant's sample (its level is 0), below -B + |w| < 0 for the
+        # others.
         per_sample = np.kron(np.eye(M), np.ones((n, 1)))  # (nM, M)
-        level = _GATE_BOUND * np.hstack([per_sample, -per_sample])
+        level = _GATE_BOUND * per_sample
         gate = add("gate", SparseMatrixGain(scipy.sparse.csc_matrix(np.vstack([
             np.hstack([level, np.eye(n * M)]), np.hstack([level, -np.eye(n * M)])]))))
         relu = add("relu", Saturation(np.zeros(2 * n * M), np.full(2 * n * M, np.inf)))
@@ -299,18 +298,16 @@ class JointTrajectoryController(Diagram):
         position_limit = add("joint_position_limits", Saturation(
             np.asarray(position_lower, dtype=float), np.asarray(position_upper, dtype=float)))
         builder.ExportInput(split.get_input_port(), "chunk")
-        builder.Connect(split.get_output_port(0), clock.get_input_port())
-        builder.Connect(clock.get_output_port(), ramps.get_input_port())
-        builder.Connect(ramps.get_output_port(), ramps_and_samples.get_input_port(0))
-        builder.Connect(split.get_output_port(2), ramps_and_samples.get_input_port(1))
-        builder.Connect(ramps_and_samples.get_output_port(), gate.get_input_port())
+        builder.Connect(instant.get_output_port(), instant_and_samples.get_input_port(0))
+        builder.Connect(split.get_output_port(1), instant_and_samples.get_input_port(1))
+        builder.Connect(instant_and_samples.get_output_port(), gate.get_input_port())
         builder.Connect(gate.get_output_port(), relu.get_input_port())
         builder.Connect(relu.get_output_port(), gated_and_measured.get_input_port(0))
         builder.ExportInput(gated_and_measured.get_input_port(1), "q_measured")
         builder.Connect(gated_and_measured.get_output_port(), step.get_input_port())
         builder.Connect(step.get_output_port(), speed_limit.get_input_port())
         builder.Connect(speed_limit.get_output_port(), self._command.get_input_port())
-        builder.Connect(split.get_output_port(1), initial_plus.get_input_port(0))
+        builder.Connect(split.get_output_port(0), initial_plus.get_input_port(0))
         builder.Connect(self._command.get_output_port(), initial_plus.get_input_port(1))
         builder.Connect(initial_plus.get_output_port(), position_limit.get_input_port())
         builder.ExportOutput(position_limit.get_output_port(), "q_command")
