@@ -9,7 +9,8 @@ trial did, so the machine's load falls on both alike. Prints:
 
 - the bare station: simulated time / wall time;
 - the closed loop alone (from the arm at rest at con_1 to the last critical
-  configuration: controller, drive, plant, monitor, logger), and its ratio to the bare
+  configuration: controller, drive, plant, monitor, logger, and reading the run off the
+  Context, where the monitor measures the logged samples), and its ratio to the bare
   station (target: at least 0.6);
 - end to end (planning, placing the arm, the closed loop, judging), and its ratio
   (target: at least 0.3);
