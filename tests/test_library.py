@@ -172,7 +172,7 @@ def test_remove_updates_manifest_and_deletes_log(library, tmp_path):
         library.remove("screw_cw")
 
 
-@pytest.mark.parametrize("name", ["", "has space", "a/b", "../x", "é", "x.csv"])
+@pytest.mark.parametrize("name", ["", "has space", "a/b", "../x", "é", "x.csv", "abc\n", "abc\r\n"])
 def test_invalid_names_refused(library, tmp_path, name):
     before = tree_digest(tmp_path / "lib")
     with pytest.raises(InputError, match="name"):

@@ -69,7 +69,7 @@ LOCK_NAME = "library.lock"
 TEMPORARY_PATTERN = ".*.tmp"
 DEMOS_DIRECTORY = "demos"
 CACHE_DIRECTORY = "cache"
-NAME_PATTERN = re.compile(r"^[A-Za-z0-9_-]+$")
+NAME_PATTERN = re.compile(r"[A-Za-z0-9_-]+\Z")  # \Z: a trailing newline is no match ($ allows one)
 #: Longest demonstration name: its log ``demos/NAME.csv`` and the log's temporary
 #: ``.NAME.csv.RANDOM.tmp`` must fit the 255 bytes of a file name.
 MAX_NAME_LENGTH = 100
