@@ -8,12 +8,14 @@ the project's clean RTDE CSV.
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
 from pydrake.math import RotationMatrix
 
 from drake_lfd.cli import main
+from drake_lfd.core.errors import InputError
 from drake_lfd.io.library import Library
 from drake_lfd.io.rtde_logs import TCP_POSE_COLUMNS, rotation_matrices_from_rotation_vectors
 from drake_lfd.robot.kinematics import UR5eKinematics
@@ -375,3 +377,26 @@ def test_unreadable_bag_is_one_line(tmp_path, capsys):
     assert "cannot read the bag" in err and "\n" not in err
     assert add(tmp_path, tmp_path / "absent.bag")[0] == 2
     assert "no such file" in capsys.readouterr().err
+
+
+# -- only regular files of bounded size are read as logs ------------------------------------
+def test_a_device_or_a_pipe_is_refused_without_reading_it(tmp_path):
+    from drake_lfd.io.demonstration_logs import read_rtde_log
+
+    with pytest.raises(InputError, match="is not a regular file") as refused:
+        read_rtde_log("/dev/zero")  # read whole, it was 2.4 GB and a MemoryError
+    assert str(refused.value).startswith("/dev/zero: ")
+    fifo = tmp_path / "log.csv"
+    os.mkfifo(fifo)
+    with pytest.raises(InputError, match="is not a regular file"):
+        read_rtde_log(fifo)  # opening it would wait for a writer
+
+
+def test_a_log_larger_than_the_limit_is_refused_before_it_is_read(tmp_path):
+    from drake_lfd.io.demonstration_logs import MAX_LOG_BYTES, read_rtde_log
+
+    huge = tmp_path / "huge.csv"
+    with open(huge, "wb") as log:
+        log.truncate(MAX_LOG_BYTES + 1)  # sparse: no disk used
+    with pytest.raises(InputError, match="a joint log is at most"):
+        read_rtde_log(huge)

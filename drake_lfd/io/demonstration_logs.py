@@ -55,7 +55,9 @@ storing demonstrations (``library.py``).
 from __future__ import annotations
 
 import math
+import os
 import re
+import stat
 from pathlib import Path
 from typing import NamedTuple
 
@@ -70,6 +72,8 @@ __all__ = [
     "MAX_JOINT_SPEED_RAD_S",
     "MAX_SAMPLE_INTERVAL_S",
     "MAX_DURATION_S",
+    "MAX_LOG_BYTES",
+    "read_log_bytes",
     "TIMESTAMP_COLUMN",
     "RUNTIME_STATE_COLUMN",
     "RUNTIME_STATE_PLAYING",
@@ -99,6 +103,9 @@ MAX_JOINT_SPEED_RAD_S = 2.0 * UR5E_JOINT_SPEED_LIMIT_RAD_S
 MAX_SAMPLE_INTERVAL_S = 1.0
 #: A kinesthetic demonstration longer than this (10 minutes) is not one.
 MAX_DURATION_S = 600.0
+# The largest joint log read, bytes: MAX_DURATION_S at 500 Hz of a UR's full RTDE record
+# (about 1,700 bytes a row with every column), with room.
+MAX_LOG_BYTES = 1 << 30
 
 # A number as C's strtod, numpy and every CSV reader spell it: ASCII only.
 _NUMBER_PATTERN = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z", re.ASCII)
@@ -265,6 +272,43 @@ def check_plausible_motion(timestamps, joint_positions, *, file, field_of):
         )
 
 
+def read_log_bytes(path) -> bytes:
+    """The bytes of the joint log at ``path``: a regular file of at most
+    :data:`MAX_LOG_BYTES` (a device such as ``/dev/zero``, a pipe or a runaway file is
+    refused before it is read).
+
+    Raises
+    ------
+    InputError
+        Naming ``path``: missing, a directory, not a regular file, too large, unreadable.
+    """
+    path = Path(path)
+    not_regular = "is not a regular file (a device, pipe or socket is no joint log)"
+    try:
+        # Before opening: opening a pipe would wait for a writer.
+        if stat.S_ISDIR(os.stat(path).st_mode):
+            raise IsADirectoryError
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            raise InputError(not_regular, file=path)
+        with open(path, "rb") as log:
+            status = os.fstat(log.fileno())
+            if not stat.S_ISREG(status.st_mode):
+                raise InputError(not_regular, file=path)
+            if status.st_size > MAX_LOG_BYTES:
+                raise InputError(f"is {status.st_size:,} bytes; a joint log is at most {MAX_LOG_BYTES:,} "
+                                 f"({MAX_DURATION_S:g} s of a UR's full RTDE record at 500 Hz)", file=path)
+            raw = log.read(MAX_LOG_BYTES + 1)
+    except FileNotFoundError:
+        raise InputError("no such file", file=path) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, not a joint log", file=path) from None
+    except OSError as error:
+        raise InputError(f"cannot read: {error.strerror}", file=path) from None
+    if len(raw) > MAX_LOG_BYTES:
+        raise InputError(f"grew past {MAX_LOG_BYTES:,} bytes while it was read", file=path)
+    return raw
+
+
 def read_rtde_log(path, *, name=None, description="", filter_runtime_state=True, rate_hz=None,
                   extra_columns=()):
     """Reads a UR RTDE joint log (or the project's own format) as a demonstration, with
@@ -309,14 +353,7 @@ def read_rtde_log(path, *, name=None, description="", filter_runtime_state=True,
         (:func:`check_plausible_motion`).
     """
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise InputError("no such file", file=path) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, not a joint log", file=path) from None
-    except OSError as error:
-        raise InputError(f"cannot read: {error.strerror}", file=path) from None
+    raw = read_log_bytes(path)
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as error:
