@@ -152,3 +152,14 @@ def test_a_tool_entering_a_shell_is_found_at_plan_time_by_its_name():
     with_tool = JointPathChecker(KinematicScene(safety_shells=[shell], tool=(rod,))).follow(plan, Q_HOME)
     assert with_tool.blocker is not None and with_tool.blocker.reason == "collision"
     assert "tool/rod" in with_tool.blocker.detail and "safety shell 'shell'" in with_tool.blocker.detail
+
+
+def test_a_clearance_shortfall_is_printed_with_the_digits_that_show_it():
+    from drake_lfd.robot.joint_path import describe_clearance_shortfall, describe_shoulder_shortfall
+
+    # 9.96 mm under a 10 mm clearance used to read "passes 10.0 mm": the reason was invisible.
+    assert describe_clearance_shortfall("safety shell 'box_shell'", 0.00996, 0.01) == (
+        "passes 9.96 mm from safety shell 'box_shell' (clearance 10 mm)")
+    assert describe_clearance_shortfall("the table", 0.004, 0.01) == "passes 4.0 mm from the table (clearance 10 mm)"
+    assert describe_clearance_shortfall("the table", -0.002, 0.01) == "enters the table by 2.0 mm"
+    assert describe_shoulder_shortfall(0.04996, 0.05) == "wrist centre 49.96 mm from the shoulder axis (< 50 mm)"

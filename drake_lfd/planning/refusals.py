@@ -42,7 +42,9 @@ from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion, transl
 from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.planning.composition import CompositionProblem
 from drake_lfd.planning.executable import InfeasibleSegment
-from drake_lfd.robot.joint_path import JointPathChecker, shoulder_singularity_distance
+from drake_lfd.robot.joint_path import (
+    JointPathChecker, describe_clearance_shortfall, describe_shoulder_shortfall, shoulder_singularity_distance,
+)
 
 __all__ = ["branch_signature", "branch_violation", "blocked_configurations", "distinct_reasons"]
 
@@ -63,11 +65,9 @@ def branch_violation(checker: JointPathChecker, q: np.ndarray, distance_m: float
     if wrist < limits.wrist_margin:
         return "singularity", "wrist", f"wrist aligned (|sin q5| = {wrist:.3f} < {limits.wrist_margin:g})"
     if shoulder < limits.shoulder_margin_m:
-        return ("singularity", "shoulder", f"wrist centre {1000 * shoulder:.0f} mm from the shoulder axis "
-                f"(< {1000 * limits.shoulder_margin_m:.0f} mm)")
+        return "singularity", "shoulder", describe_shoulder_shortfall(shoulder, limits.shoulder_margin_m)
     if distance_m < limits.clearance_m:
-        verb = (f"enters {box} by {-1000 * distance_m:.1f} mm" if distance_m < 0 else
-                f"passes {1000 * distance_m:.1f} mm from {box} (clearance {1000 * limits.clearance_m:g} mm)")
+        verb = describe_clearance_shortfall(box, distance_m, limits.clearance_m)
         return "collision", f"collision {robot_geometry} {box}", f"{robot_geometry} {verb}"
     return None
 
@@ -260,8 +260,7 @@ def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
         names = scene.geometry
         robot = names.names[names.robot_geometry_ids[rows[row]]]
         what = names.describe(names.keep_out_geometry_ids[box])
-        verb = (f"enters {what} by {-1000 * best:.1f} mm" if best < 0 else
-                f"passes {1000 * best:.1f} mm from {what} (clearance {1000 * clearance:g} mm)")
+        verb = describe_clearance_shortfall(what, best, clearance)
         segments.append(InfeasibleSegment(
             i + 1, i + 2, "collision",
             f"{robot} {verb} whichever way shoulder_pan turns from con_{i + 1} to con_{i + 2}, on every "

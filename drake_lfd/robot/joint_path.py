@@ -102,6 +102,9 @@ __all__ = [
     "JointPath",
     "shoulder_singularity_distance",
     "ur5e_reach_m",
+    "millimetres_below",
+    "describe_clearance_shortfall",
+    "describe_shoulder_shortfall",
     "JointPathChecker",
 ]
 
@@ -280,6 +283,31 @@ def _equal_rows(a: np.ndarray, b: np.ndarray) -> int:
     return int(differ[0]) if len(differ) else rows
 
 
+
+def millimetres_below(value_m: float, limit_m: float) -> str:
+    """``value_m`` in millimetres with the fewest decimals (1 to 4) that show it below
+    ``limit_m`` (9.96 mm under a 10 mm clearance reads ``9.96``, not ``10.0``)."""
+    for digits in (1, 2, 3, 4):
+        text = f"{1000 * value_m:.{digits}f}"
+        if float(text) < 1000 * limit_m:
+            return text
+    return f"{1000 * value_m:.4f}"
+
+
+def describe_clearance_shortfall(what: str, distance_m: float, clearance_m: float) -> str:
+    """``enters WHAT by D mm`` or ``passes D mm from WHAT (clearance C mm)``, with digits
+    enough to show the shortfall."""
+    if distance_m < 0:
+        return f"enters {what} by {-1000 * distance_m:.1f} mm"
+    return f"passes {millimetres_below(distance_m, clearance_m)} mm from {what} (clearance {1000 * clearance_m:g} mm)"
+
+
+def describe_shoulder_shortfall(distance_m: float, margin_m: float) -> str:
+    """The wrist centre's distance from the shoulder axis, below its margin."""
+    return (f"wrist centre {millimetres_below(distance_m, margin_m)} mm from the shoulder axis "
+            f"(< {1000 * margin_m:g} mm)")
+
+
 class JointPathChecker:
     """Follows timed plans kinematically in a scene and reports the first violation.
 
@@ -427,8 +455,8 @@ class JointPathChecker:
             elif wrist < limits.wrist_margin:
                 blocker = Blocker("singularity", f"wrist aligned (|sin q5| = {wrist:.3f} < {limits.wrist_margin:g})", t, span)
             elif shoulder < limits.shoulder_margin_m:
-                blocker = Blocker("singularity", f"wrist centre {1000 * shoulder:.0f} mm from the shoulder axis "
-                                  f"(< {1000 * limits.shoulder_margin_m:.0f} mm)", t, span)
+                blocker = Blocker("singularity", describe_shoulder_shortfall(shoulder, limits.shoulder_margin_m), t,
+                                  span)
             if blocker is not None:
                 break
             # Clearance. ``slack``: how much more any pair's geometry may move before a
@@ -448,8 +476,7 @@ class JointPathChecker:
                 robot_id, box_id = pair
                 names = self.scene.geometry
                 what = "the table" if box_id in self._table_ids else names.describe(box_id)
-                verb = f"enters {what} by {-1000 * clearance:.1f} mm" if clearance < 0 else \
-                    f"passes {1000 * clearance:.1f} mm from {what} (clearance {1000 * limits.clearance_m:g} mm)"
+                verb = describe_clearance_shortfall(what, clearance, limits.clearance_m)
                 blocker = Blocker("collision", f"collision with {what}: {names.names.get(robot_id, robot_id)} {verb}",
                                   t, span)
                 break
