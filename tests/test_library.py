@@ -5,6 +5,7 @@ import hashlib
 import json
 import math
 import os
+import shutil
 import sqlite3
 
 import numpy as np
@@ -170,6 +171,16 @@ def test_remove_updates_manifest_and_deletes_log(library, tmp_path):
     assert sorted(cache_rows(root)) == ["pour"]
     with pytest.raises(InputError, match="no demonstration 'screw_cw'"):
         library.remove("screw_cw")
+
+
+def test_a_remove_that_removed_succeeds_when_the_cache_folder_is_a_file(library, tmp_path):
+    # It used to remove the entry, then fail on cache/NAME.npz ("Not a directory").
+    root = tmp_path / "lib"
+    shutil.rmtree(root / "cache")
+    (root / "cache").write_text("not a folder")
+    library.remove("screw_cw")  # no error
+    assert mut.Library.open(root).names == ("pour",)
+    assert not (root / "demos" / "screw_cw.csv").exists()
 
 
 @pytest.mark.parametrize("name", ["", "has space", "a/b", "../x", "é", "x.csv", "abc\n", "abc\r\n"])

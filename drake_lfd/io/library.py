@@ -1035,10 +1035,13 @@ class Library:
             self._manifest_bytes = write_manifest(self.path, manifest.with_entries(entries))
             self._set_manifest(manifest.with_entries(entries))
             self._features.pop(name, None)
+            # The manifest no longer lists it: the removal is done. Its log and cache file
+            # go too where they are (a damaged library may have neither, or a file where
+            # the cache folder should be).
             for path in (self.path / entry.file, self.path / CACHE_DIRECTORY / f"{name}.npz"):
                 try:
                     path.unlink()
-                except FileNotFoundError:
+                except (FileNotFoundError, NotADirectoryError):
                     pass
             if (self.path / DEMOS_DIRECTORY).is_dir():
                 fsync_directory(self.path / DEMOS_DIRECTORY)
