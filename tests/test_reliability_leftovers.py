@@ -149,3 +149,23 @@ def test_library_copy_waits_for_a_writer_of_the_source(tmp_path):
     finally:
         holder.kill()
         holder.wait()
+
+
+def test_a_full_disk_names_the_file_being_written(tmp_path, monkeypatch):
+    import errno
+
+    from drake_lfd.cli.app import describe_os_error
+    from drake_lfd.io import atomic_files
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")  # as a write reports it: no file name
+
+    monkeypatch.setattr(atomic_files.os, "fsync", full)
+    target = tmp_path / "plan.json"
+    for write in (lambda: atomic_files.atomic_write_bytes(target, b"{}"),
+                  lambda: atomic_files.atomic_write_many([(target, b"{}")])):
+        with pytest.raises(OSError) as raised:
+            write()
+        assert raised.value.errno == errno.ENOSPC
+        assert describe_os_error(raised.value) == f"{target}: No space left on device"
+        assert list(tmp_path.iterdir()) == []  # the temporary file is gone, nothing half-written

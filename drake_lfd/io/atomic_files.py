@@ -7,6 +7,7 @@ policies, recorded demonstrations, JSON results. JSON written here is strict
 
 from __future__ import annotations
 
+import contextlib
 import os
 import stat
 import tempfile
@@ -61,12 +62,13 @@ def atomic_write_bytes(path, data):
         return
     fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "wb") as file:
-            file.write(data)
-            file.flush()
-            os.fsync(file.fileno())
-        os.chmod(temporary, mode)
-        os.replace(temporary, path)
+        with _naming(path):
+            with os.fdopen(fd, "wb") as file:
+                file.write(data)
+                file.flush()
+                os.fsync(file.fileno())
+            os.chmod(temporary, mode)
+            os.replace(temporary, path)
     except BaseException:
         try:
             os.unlink(temporary)
@@ -74,6 +76,18 @@ def atomic_write_bytes(path, data):
             pass
         raise
     fsync_directory(path.parent)
+
+
+@contextlib.contextmanager
+def _naming(path):
+    """Gives an OSError raised without a file name (a write's "No space left on device")
+    the name of the file being written, so the one line the user reads names it."""
+    try:
+        yield
+    except OSError as error:
+        if error.filename is not None or error.errno is None:
+            raise
+        raise OSError(error.errno, error.strerror or str(error), str(path)) from error
 
 
 def atomic_write_many(items):
@@ -106,7 +120,7 @@ def atomic_write_many(items):
                 mode = 0o644
             fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
             staged.append((temporary, path, mode))
-            with os.fdopen(fd, "wb") as file:
+            with _naming(path), os.fdopen(fd, "wb") as file:
                 file.write(data)
                 if len(items) < SYNC_ALL_FROM_FILES:
                     file.flush()
