@@ -301,3 +301,29 @@ def test_the_tool_direction_table_of_task_files_rst():
             np.testing.assert_allclose(kinematics.X_WE(best.q).GetAsMatrix4(), X_WE.GetAsMatrix4(), atol=1e-4)
             z_tool0 = kinematics.X_Wtool0(best.q).rotation().matrix()[:, 2]
             np.testing.assert_allclose(z_tool0, expected, atol=1e-4, err_msg=f"{direction} {euler}")  # IK: 1e-5 rad
+
+
+def _task_with_boxes(path, group, count):
+    boxes = "\n".join(f"  - {{name: b{i}, centre: [2, {i / 100:.2f}, 0], size: [0.01, 0.01, 0.01]}}" for i in range(count))
+    path.write_text("critical_configurations:\n  - {p: [0.4, -0.2, 0.2], euler_zyx: [0, 0, 0]}\n"
+                    f"  - {{p: [0.4, 0.0, 0.3], euler_zyx: [0, 0, 0]}}\n{group}:\n{boxes}\n")
+    return path
+
+
+@pytest.mark.parametrize("group", ["obstacles", "safety_shells"])
+def test_a_task_with_more_boxes_than_the_limit_is_refused_naming_the_block(tmp_path, group):
+    path = _task_with_boxes(tmp_path / "many.yaml", group, mut.MAX_BOXES + 1)
+    with pytest.raises(InputError, match=f"at most {mut.MAX_BOXES}") as refused:
+        mut.load_task(path)
+    assert str(refused.value).startswith(f"{path}: {group}: ")
+    at_the_limit = mut.load_task(_task_with_boxes(tmp_path / "limit.yaml", group, mut.MAX_BOXES))
+    assert len(getattr(at_the_limit, group)) == mut.MAX_BOXES
+
+
+def test_a_tool_with_more_shapes_than_the_limit_is_refused(tmp_path):
+    shapes = "\n".join(f"  - {{name: s{i}, box: [0.01, 0.01, 0.01], p: [0, 0, 0.05]}}" for i in range(21))
+    path = tmp_path / "tool.yaml"
+    path.write_text("critical_configurations:\n  - {p: [0.4, -0.2, 0.2], euler_zyx: [0, 0, 0]}\n"
+                    f"  - {{p: [0.4, 0.0, 0.3], euler_zyx: [0, 0, 0]}}\ntool:\n{shapes}\n")
+    with pytest.raises(InputError, match=f"at most {mut.MAX_TOOL_SHAPES} shapes"):
+        mut.load_task(path)

@@ -120,12 +120,20 @@ __all__ = [
     "task_from_spec",
     "load_task",
     "MAX_CRITICAL_CONFIGURATIONS",
+    "MAX_BOXES",
+    "MAX_TOOL_SHAPES",
     "MIN_ANGLE_GRID_DEG",
 ]
 
 #: Most critical configurations a task may have: planning time grows with the square of
 #: their number (100 fixed ones plan in about 15 s on one core, 200 take minutes).
 MAX_CRITICAL_CONFIGURATIONS = 100
+#: Most obstacles, and most safety shells, a task may have: every one is a clearance
+#: query per robot geometry at every step the plan-time check and the monitor take (a
+#: task with thousands planned for minutes at about 1 GB).
+MAX_BOXES = 100
+#: Most shapes of a ``tool:`` block (each is queried against every box at every step).
+MAX_TOOL_SHAPES = 20
 #: Finest ``angle_grid_deg``: finer grids are far over the planning limits anyway
 #: (planning/problem_size.py), and a grid of 1e-320 deg would be 0 rad.
 MIN_ANGLE_GRID_DEG = 1e-3
@@ -293,6 +301,8 @@ def _tool(specs, *, file):
     """The ``tool:`` block's shapes (None when the block is absent: the default tool)."""
     if specs is None:
         return None
+    if len(specs) > MAX_TOOL_SHAPES:
+        raise InputError(f"a tool has at most {MAX_TOOL_SHAPES} shapes, got {len(specs):,}", file=file, field="tool")
     shapes, names = [], {}
     for index, spec in enumerate(specs):
         field = f"tool[{index}]"
@@ -418,6 +428,11 @@ def task_from_spec(spec, *, file=None):
         )
 
     boxes = {}
+    for group, specs_of_group in (("obstacles", spec.obstacles), ("safety_shells", spec.safety_shells)):
+        if len(specs_of_group) > MAX_BOXES:
+            raise InputError(f"a task has at most {MAX_BOXES} {group.replace('_', ' ')}, got {len(specs_of_group):,} "
+                             "(each is a clearance query at every step of the check and the run)",
+                             file=file, field=group)
     obstacles = tuple(_box(b, file=file, field=f"obstacles[{i}]") for i, b in enumerate(spec.obstacles))
     shells = tuple(_box(b, file=file, field=f"safety_shells[{i}]") for i, b in enumerate(spec.safety_shells))
     for group, items in (("obstacles", obstacles), ("safety_shells", shells)):
