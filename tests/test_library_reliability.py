@@ -316,3 +316,18 @@ def test_edited_log_sample_count_is_detected(library, capsys):
     log.write_text("\n".join(log.read_text().splitlines()[:-1]) + "\n")  # one sample less
     assert main(["library", "show", str(library)]) == 2
     assert "demos[0].samples: is 40 but the joint log demos/first.csv has 39 samples" in one_error_line(capsys)
+
+
+def test_a_reader_opened_before_a_remove_reads_the_library_as_it_is_now(tmp_path):
+    # ``plan`` opened the library, then another process removed a demonstration: reading
+    # the features failed with "cannot read the joint log: No such file or directory".
+    from drake_lfd.io.library import Library, copy_library, library_features
+
+    copy = tmp_path / "lib"
+    copy_library("paper5", copy)
+    reader = Library.open(copy)
+    Library.open(copy).remove("filling")  # another writer
+    features = library_features(reader)
+    assert "filling" not in features and len(features) == 4
+    reader.write_feature_caches()  # no error either
+    assert reader.names == ("screw_cw", "screw_ccw", "pouring", "stacking")

@@ -711,9 +711,15 @@ class Library:
         """Name -> feature of ``names`` (default: every demonstration, in the library's
         order), as :meth:`feature` gives them, read from the cache in one query; writes
         nothing."""
-        names = self.names if names is None else tuple(names)
-        with collection_paused():  # thousands of features and their arrays, no cycles
-            records = self._feature_records(names)
+        # Under the shared lock, writers wait while the logs are read, and the library is
+        # read as it is now: a demonstration another process removed since this object
+        # read the manifest is no longer asked for (its log is gone).
+        with shared_lock(self.path / LOCK_NAME):
+            if names is None:
+                self._refresh_manifest()
+            names = self.names if names is None else tuple(names)
+            with collection_paused():  # thousands of features and their arrays, no cycles
+                records = self._feature_records(names)
         return {name: records[name].feature for name in names}
 
     def feature_summaries(self, names=None):
@@ -762,9 +768,12 @@ class Library:
         if self.read_only:
             return ()
         # A row is fresh when the log's stamp is the row's and its key the one wanted: then
-        # nothing is read. The others are computed outside the lock.
-        stale = [name for name in self.names if not self._row_is_fresh(name)]
-        records = self._feature_records(stale)
+        # nothing is read. The others are computed under the shared lock (writers wait;
+        # the library as it is now), then written under the exclusive one.
+        with shared_lock(self.path / LOCK_NAME):
+            self._refresh_manifest()
+            stale = [name for name in self.names if not self._row_is_fresh(name)]
+            records = self._feature_records(stale)
         missing = [(name, records[name]) for name in stale if not records[name].on_disk and records[name].row]
         listed = set(self.names)
         unlisted = [name for name in self._rows if name not in listed]
@@ -867,6 +876,12 @@ class Library:
             num_samples=self.num_samples,
             rotation_length_m=self.rotation_length_m,
         )
+
+    def _refresh_manifest(self):
+        """Re-reads the manifest if another process changed it since this object read it
+        (call with a lock held); a read-only (bundled) library does not change."""
+        if not self.read_only:
+            self._manifest_on_disk()
 
     # -- writing ---------------------------------------------------------------------
     def _manifest_on_disk(self):
