@@ -24,11 +24,11 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import EventStatus, LeafSystem, ValueProducer
 
 from drake_lfd.planning.replanning import ScheduledPlan
-from drake_lfd.systems.planner import NO_PLAN
 from drake_lfd.robot.differential_ik_law import DifferentialIKLaw
 from drake_lfd.systems.joint_trajectory_controller import (
     CHUNK_SAMPLES, chunk_size, feed_forward_samples, joint_path_of_plan,
 )
+from drake_lfd.systems.planner import NO_PLAN
 
 __all__ = ["JointPathSource"]
 
