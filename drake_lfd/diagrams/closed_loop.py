@@ -227,8 +227,9 @@ class ClosedLoopRunner:
         result = pipeline.trial_result(context, stop_reason=stop_reason if early else "",
                                        setup_wall_time_s=setup_wall_time_s,
                                        initial_configuration=start.initial_configuration)
-        result = dataclasses.replace(result, wall_time_s=time.perf_counter() - wall_start,
-                                     cpu_time_s=time.process_time() - cpu_start)
+        if result is not None:  # (None only if a replan left nothing in force)
+            result = dataclasses.replace(result, wall_time_s=time.perf_counter() - wall_start,
+                                         cpu_time_s=time.process_time() - cpu_start)
         if recording:
             visualizer.StopRecording()
             visualizer.PublishRecording()
