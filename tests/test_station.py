@@ -8,11 +8,11 @@ import textwrap
 
 import numpy as np
 import pytest
-from pydrake.systems.analysis import ExtractSimulatorConfig, Simulator, SimulatorConfig
+from pydrake.systems.analysis import ApplySimulatorConfig, ExtractSimulatorConfig, Simulator, SimulatorConfig
 
 import drake_lfd.diagrams.station as mut
 from drake_lfd.core.errors import InputError
-from drake_lfd.io.simulation_config import PipelineConfig, StationConfig, apply_simulator_config
+from drake_lfd.io.simulation_config import PipelineConfig, StationConfig
 from drake_lfd.io.task_files import load_task
 
 Q_HOME = np.array([0.0, -1.2, 1.6, -1.97, -np.pi / 2, 0.0])
@@ -162,7 +162,7 @@ def test_drakes_config_structs_load_from_the_simulation_block_and_reach_the_plan
     assert station.plant.time_step() == 0.002 == station.time_step
     assert station.plant.get_discrete_contact_approximation().name == "kSap"  # kept from the default
     simulator = Simulator(station)
-    apply_simulator_config(config.simulator, simulator)
+    ApplySimulatorConfig(config.simulator, simulator)
     assert simulator.get_target_realtime_rate() == 2.0
 
 
@@ -174,7 +174,7 @@ def test_the_default_configs_keep_todays_plant_and_simulator():
     # The default SimulatorConfig is a fresh Simulator's own: applying it changes nothing.
     simulator = Simulator(station)
     before = repr(ExtractSimulatorConfig(simulator))
-    apply_simulator_config(PipelineConfig().simulator, simulator)
+    ApplySimulatorConfig(PipelineConfig().simulator, simulator)
     assert repr(ExtractSimulatorConfig(simulator)) == before == repr(SimulatorConfig())
 
 

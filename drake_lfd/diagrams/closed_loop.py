@@ -37,12 +37,12 @@ from typing import Sequence
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.math import RigidTransform
-from pydrake.systems.analysis import Simulator
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
 from drake_lfd.core.dual_quaternion import dual_quaternion_from_rigid_transform, dual_quaternion_sclerp
 from drake_lfd.core.tasks import ConcreteTask
 from drake_lfd.core.timing import TimedPlan, time_plan
-from drake_lfd.io.simulation_config import PipelineConfig, apply_simulator_config
+from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.diagrams.pipeline import Pipeline, TrialStart, build_pipeline
 from drake_lfd.diagrams.trial_result import ClosedLoopResult
 from drake_lfd.diagrams.recording_meshcat import recording_meshcat
@@ -122,7 +122,7 @@ class ClosedLoopRunner:
         self.pipeline = pipeline
         self.meshcat = record_meshcat
         self.simulator = Simulator(pipeline)
-        apply_simulator_config(pipeline.config.simulator, self.simulator)
+        ApplySimulatorConfig(pipeline.config.simulator, self.simulator)
         self.kinematics = pipeline.kinematics
         self._task_space: ClosedLoopRunner | None = None
         self._start: TrialStart | None = None

@@ -50,7 +50,7 @@ import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.geometry import Meshcat
 from pydrake.math import RigidTransform, RollPitchYaw
-from pydrake.systems.analysis import Simulator
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, System
 from pydrake.systems.primitives import LogVectorOutput
 
@@ -59,7 +59,7 @@ from drake_lfd.core.tasks import Box, ConcreteTask, Task, draw_trial
 from drake_lfd.core.timing import TimedPlan
 from drake_lfd.io.library_source import resolve_features
 from drake_lfd.io.plan_json import describe_uncovered
-from drake_lfd.io.simulation_config import COMPILED_METHOD, PipelineConfig, apply_simulator_config
+from drake_lfd.io.simulation_config import COMPILED_METHOD, PipelineConfig
 from drake_lfd.diagrams.judging import RunJudgement, judge_run
 from drake_lfd.diagrams.station import Station
 from drake_lfd.diagrams.trial_result import ClosedLoopResult, read_trial
@@ -393,7 +393,7 @@ class Pipeline(Diagram):
             raise ValueError("make_simulator needs the pipeline's task (build_pipeline(task, ...))")
         seed = int(generator()) % (2 ** 31)
         simulator = Simulator(self)
-        apply_simulator_config(self.config.simulator, simulator)
+        ApplySimulatorConfig(self.config.simulator, simulator)
         start = self.prepare_trial(simulator.get_mutable_context(), draw_trial(self.task, seed))
         if start.q_initial is not None:
             self.station.plant.SetDefaultPositions(self.station.model, start.q_initial)

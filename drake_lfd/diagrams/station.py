@@ -199,8 +199,8 @@ class Station(Diagram):
         scene = add_scene(plant, scene_graph, model=model, obstacles=self.obstacles,
                           safety_shells=self.safety_shells, table=self.table, tool=workcell.tool)
         plant.Finalize()
-        # The desired state is in joint order, the PD actuators in actuator order. They
-        # coincide for the shipped URDF; make sure.
+        # The desired state and the gravity compensation are in joint order, the actuators
+        # in actuator order. They coincide for the shipped URDF; make sure.
         if not np.array_equal(plant.MakeActuationMatrix(), np.eye(NUM_JOINTS)):
             raise RuntimeError("UR5e actuators are not in joint order; the drive wiring assumes they are")
 

@@ -15,7 +15,7 @@ The plant, the simulator and the visualisation are configured by Drake's own str
 loaded the same way and applied with Drake's functions (as the manipulation course's
 scenarios do): ``station.plant`` is a ``MultibodyPlantConfig`` (``ApplyMultibodyPlantConfig``),
 ``station.visualization`` a ``VisualizationConfig`` (``ApplyVisualizationConfig``) and
-``simulator`` a ``SimulatorConfig`` (:func:`apply_simulator_config`)::
+``simulator`` a ``SimulatorConfig`` (``ApplySimulatorConfig``)::
 
     simulation:
       station:
@@ -55,7 +55,6 @@ __all__ = [
     "PipelineConfig",
     "plant_config",
     "visualization_config",
-    "apply_simulator_config",
     "STATION_TIME_STEP_S",
     "CLOSED_LOOP_TIME_STEP_S",
     "COMPILED_METHOD",
@@ -113,16 +112,6 @@ def visualization_config() -> VisualizationConfig:
     """
     return VisualizationConfig(publish_period=VISUALIZER_PUBLISH_PERIOD_S, publish_proximity=False,
                                publish_contacts=False, publish_inertia=False)
-
-
-def apply_simulator_config(config: SimulatorConfig, simulator: Simulator) -> None:
-    """Applies ``config`` to ``simulator`` (Drake's ``ApplySimulatorConfig``).
-
-    The default ``SimulatorConfig()`` is exactly the state of a freshly made
-    ``Simulator`` (RK3 integrator, 0.1 s largest step, accuracy 1e-4 with error control,
-    no real-time pacing, no publish at every step), so applying it changes nothing.
-    """
-    ApplySimulatorConfig(config, simulator)
 
 
 class _OwnedStruct:
@@ -376,8 +365,10 @@ class PipelineConfig(_PicklableStructs):
     station : StationConfig
         Its ``time_step`` defaults to the closed-loop step (5 ms) here.
     simulator : pydrake.systems.analysis.SimulatorConfig
-        The run's Simulator (Drake's struct; :func:`apply_simulator_config`). The default
-        is a fresh Simulator's own settings.
+        The run's Simulator (Drake's struct, applied with ``ApplySimulatorConfig``). The
+        default is a fresh Simulator's own settings (RK3 integrator, 0.1 s largest step,
+        accuracy 1e-4 with error control, no real-time pacing, no publish at every step),
+        so applying it changes nothing.
     controller : ControllerConfig
     monitor : MonitorConfig
     planner : PlannerSystemConfig

@@ -262,10 +262,7 @@ def demonstration_from_log(log: VectorLog, *, name: str = "demo", description: s
     data = np.asarray(log.data(), dtype=float)
     if data.shape[0] != NUM_JOINTS:
         raise ValueError(f"a demonstration logs {NUM_JOINTS} joints, the log has {data.shape[0]}")
-    keep = np.ones(times.shape[0], dtype=bool)
-    last = -np.inf
-    for i, t in enumerate(times):
-        keep[i] = t > last
-        last = max(last, t)
+    # Kept: a time after every time before it.
+    keep = times > np.maximum.accumulate(np.concatenate([[-np.inf], times[:-1]]))
     return Demonstration(name=name, timestamps=times[keep], joint_positions=data[:, keep].T,
                          description=description)
