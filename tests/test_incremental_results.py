@@ -40,15 +40,18 @@ def test_sigint_after_the_second_trial_keeps_the_finished_ones_on_disk(tmp_path)
     records = read_json_lines(lines_path)
     kept = len(records)
     assert 2 <= kept < trials  # what finished before the signal, not one trial more or fewer
-    assert [r["trial"] for r in records] == list(range(1, kept + 1))
-    assert [r["seed"] for r in records] == list(range(kept))
+    # In trial order; on two workers (the default) a later trial may have finished while
+    # an earlier one still ran, and an interrupt keeps it too: ascending, not always 1..kept.
+    numbers = [r["trial"] for r in records]
+    assert numbers[:2] == [1, 2] and numbers == sorted(set(numbers))
+    assert [r["seed"] for r in records] == [n - 1 for n in numbers]
     for record in records:  # each line is a whole trial, as in the final JSON's "trials"
         assert record["task"] == "transferring" and len(record["t"]) == len(record["q"]) > 100
         assert {"success", "failures", "composition", "critical_errors"} <= set(record)
     assert not out.exists()  # the final document is written only when every trial ran
     assert f"{kept} finished trial(s) of {trials} are in {lines_path}" in stdout
     assert [line.split(" (")[0] for line in stdout.splitlines() if line.startswith("trial ")] == [
-        f"trial {n}" for n in range(1, kept + 1)]
+        f"trial {n}" for n in numbers]
 
 
 def test_json_lines_are_strict_whole_and_beside_the_json(tmp_path):
