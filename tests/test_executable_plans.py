@@ -227,7 +227,7 @@ def test_a_task_needing_the_wrist_3_winding_of_the_whole_plan_succeeds_in_closed
 @pytest.mark.parametrize("cost", ["paper", "fidelity"])
 @pytest.mark.parametrize("seed", [0, 3])
 def test_a_rigid_motion_of_the_whole_problem_keeps_the_plan(transferring, paper5, seed, cost):
-    """Robot base, table, critical configurations, obstacles and shells turned by 0.4 rad
+    """Robot base, table, critical configurations, obstacles, shells and path constraints turned by 0.4 rad
     about the vertical and moved: the same composition, the same twists and suffixes, the
     same joint path; the poses are the original ones moved rigidly (ties between equally
     good choices are not decided by floating-point noise)."""
@@ -250,10 +250,15 @@ def test_a_rigid_motion_of_the_whole_problem_keeps_the_plan(transferring, paper5
         return Box(name=box.name, centre=T.multiply(np.array(box.centre)), size=box.size,
                    rotation=T.rotation().matrix() @ box.rotation)
 
+    def moved_constraint(constraint):
+        rpy = RollPitchYaw(T.rotation().multiply(RollPitchYaw(np.array(constraint.euler_zyx)[::-1]).ToRotationMatrix()))
+        return dataclasses.replace(constraint, euler_zyx=[rpy.yaw_angle(), rpy.pitch_angle(), rpy.roll_angle()])
+
     moved = dataclasses.replace(
         concrete, critical_configurations=tuple(moved_con(c) for c in concrete.critical_configurations),
         X_WB=T.multiply(concrete.X_WB), obstacles=tuple(moved_box(b) for b in concrete.obstacles),
-        safety_shells=tuple(moved_box(b) for b in concrete.safety_shells))
+        safety_shells=tuple(moved_box(b) for b in concrete.safety_shells),
+        path_constraints=tuple(moved_constraint(c) for c in concrete.path_constraints))
     results = []
     for task in (concrete, moved):
         workcell = Workcell.of(task)

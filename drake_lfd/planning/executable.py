@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from pydrake.math import RigidTransform
 
@@ -52,7 +52,7 @@ class InfeasibleSegment:
     """A segment of a composition that the robot cannot run, and why.
 
     ``con_from``/``con_to`` are 1-based; ``reason`` one of ``reach``, ``joint_limit``,
-    ``singularity``, ``collision``; ``demo`` the demonstration mapped onto it (empty for a
+    ``singularity``, ``collision``, ``path_constraint``; ``demo`` the demonstration mapped onto it (empty for a
     critical configuration out of reach before any composition); ``blocked_alternatives``
     how many alternatives (actions: demo, span and candidate angles) this reason blocked."""
 
@@ -106,6 +106,7 @@ def search_executable(
     max_rounds: int = MAX_SEARCH_ROUNDS,
     max_starts: int = MAX_START_BRANCHES,
     refusal: Callable[[CompositionProblem], list[InfeasibleSegment]] | None = None,
+    path_constraints: Sequence = (),
 ) -> ExecutableSearch:
     """Lazy search for an executable composition (see the module docstring).
 
@@ -127,6 +128,10 @@ def search_executable(
     composition, it costs nothing when an alternative mapping gets the arm past the
     block (the common case on the paper's tasks), and sees the problem as it was then
     (alternatives forbid nothing), so its segments are the same.
+
+    ``path_constraints`` (the task's) are checked on every follow: a composition that
+    turns the tool beyond one is blocked like a collision, and the search tries the
+    others (:meth:`~drake_lfd.robot.joint_path.JointPathChecker.follow`).
     """
     first = None
     asked: list = []
@@ -140,7 +145,8 @@ def search_executable(
         attempt = copy.copy(problem)
         attempt.cost = dict(problem.cost)
         search = _search_from(attempt, solve, compose, checker, demo_names, start_index,
-                              alternatives=alternatives, max_rounds=max_rounds, refused=refused)
+                              alternatives=alternatives, max_rounds=max_rounds, refused=refused,
+                              path_constraints=path_constraints)
         if search.steps is None and asked and asked[0]:
             return search  # no other start can help
         if search.steps is not None:
@@ -156,7 +162,7 @@ def search_executable(
 
 
 def _search_from(problem, solve, compose, checker, demo_names, start_index, *, alternatives, max_rounds,
-                 refused=lambda problem: ()):
+                 refused=lambda problem: (), path_constraints=()):
     """The lazy search with the start fixed to branch ``start_index`` (see
     :func:`search_executable`)."""
     blocked: list[InfeasibleSegment] = []
@@ -178,7 +184,8 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
             starts = checker.start_candidates(RigidTransform(matrices_from_dual_quaternion(timed.poses[:1])[0]))
             if len(starts) <= start_index:
                 return composed, None
-            path = checker.follow_from_candidates(timed, starts[start_index:start_index + 1])
+            path = checker.follow_from_candidates(timed, starts[start_index:start_index + 1],
+                                                  path_constraints=path_constraints)
             return composed, dataclasses.replace(path, start_index=start_index)
 
         composed, path = check(overrides)

@@ -543,7 +543,8 @@ def plan_composition(
         composed = None if steps is None else compose(steps)
     else:
         search = search_executable(problem, solve, compose, checker, names, alternatives=alternatives,
-                                   refusal=lambda problem: blocked_configurations(problem, checker))
+                                   refusal=lambda problem: blocked_configurations(problem, checker),
+                                   path_constraints=task.path_constraints)
         steps, composed, joint_path, blocked, rounds = (
             search.steps, search.composed, search.joint_path, distinct_reasons(search.blocked), search.rounds)
     greedy_completed, fallback = q_outcome.get("greedy_completed"), q_outcome.get("fallback")

@@ -93,6 +93,13 @@ from drake_lfd.robot.kinematics import (
     UR5eKinematics,
 )
 from drake_lfd.robot.motion_bounds import motion_bounds
+from drake_lfd.robot.path_constraints import (
+    allowed_deviation,
+    constraint_rotation,
+    constraint_window,
+    describe_deviation,
+    orientation_deviations,
+)
 from drake_lfd.robot.scene import KinematicScene
 
 __all__ = [
@@ -108,7 +115,7 @@ __all__ = [
     "JointPathChecker",
 ]
 
-REASONS = ("reach", "joint_limit", "singularity", "collision")
+REASONS = ("reach", "joint_limit", "singularity", "collision", "path_constraint")
 
 # UR5e DH parameters (m): the shoulder singularity's distance and the reach bound.
 _A2, _A3 = UR5E_DH_A[1], UR5E_DH_A[2]
@@ -385,15 +392,22 @@ class JointPathChecker:
         return cls(scene, X_WB=workcell.X_WB, table_geometry_ids=table, **kwargs)
 
     # -- one follow ----------------------------------------------------------------------
-    def follow(self, plan: TimedPlan, q_start: np.ndarray) -> JointPath:
+    def follow(self, plan: TimedPlan, q_start: np.ndarray, *, path_constraints: Sequence = ()) -> JointPath:
         """Follows ``plan`` from ``q_start`` (6,); see the module docstring.
+
+        ``path_constraints``: the task's (:class:`~drake_lfd.core.tasks.PathConstraint`),
+        measured on the commanded joints over the spans each covers; the first sample
+        turning the tool further than a constraint allows (its tolerance less the closed
+        loop's tracking margin, :mod:`~drake_lfd.robot.path_constraints`) blocks the path
+        like a collision, with reason ``path_constraint``.
 
         A plan this checker followed before from the same start, identical (times,
         poses, critical indices) up to one of its critical configurations, is resumed
         from the state the loop had there (:class:`_Checkpoint`): the law is
         deterministic, so the result equals a full follow to the bit.
         """
-        return self._follow(plan, np.array(q_start, dtype=float))
+        path = self._follow(plan, np.array(q_start, dtype=float))
+        return self._held_to(path, plan, path_constraints) if path_constraints else path
 
     def _follow(self, plan: TimedPlan, q_start: np.ndarray) -> JointPath:
         limits, law, dt = self.limits, self.law, self.time_step
@@ -514,6 +528,34 @@ class JointPathChecker:
                            min_clearance, min_elbow, min_wrist, min_shoulder, clearances=np.array(clearances))
         self._remember(_FollowRecord(q_start.tobytes(), critical_indices, plan_times, plan_poses, result, checkpoints))
         return result
+
+    def _held_to(self, path: JointPath, plan: TimedPlan, constraints: Sequence) -> JointPath:
+        """``path`` ended at the first sample that breaks one of ``constraints``, with that
+        constraint as its blocker (naming the worst angle over the samples it covers up
+        to the path's own end); ``path`` itself when none is broken first."""
+        due = [float(plan.times[i]) for i in plan.critical_indices]
+        R_WE = np.einsum("ij,mjk->mik", self._R_BW.T, self._arm.poses_batch(path.q)[:, :3, :3])
+        first = None  # (sample, detail)
+        for constraint in constraints:
+            if constraint.kind != "orientation":
+                continue
+            window = np.flatnonzero(constraint_window(constraint, due, path.t))
+            if not len(window):
+                continue
+            angles = orientation_deviations(R_WE[window], constraint_rotation(constraint))
+            allowed = allowed_deviation(constraint)
+            over = np.flatnonzero(angles > allowed)
+            if len(over) and (first is None or window[over[0]] < first[0]):
+                first = (int(window[over[0]]), describe_deviation(constraint, float(angles.max()), allowed))
+        if first is None:
+            return path
+        k, detail = first
+        t = float(path.t[k])
+        span = max(0, min(int(np.searchsorted(due, t + 1e-9, side="right")) - 1, len(due) - 2))
+        return dataclasses.replace(
+            path, t=path.t[:k + 1], q=path.q[:k + 1], blocker=Blocker("path_constraint", detail, t, span),
+            critical_errors=path.critical_errors[:sum(1 for d in due if d <= t + 1e-9)],
+            clearances=None if path.clearances is None else path.clearances[:k + 1])
 
     def _desired_in_base(self, plan: TimedPlan, t: np.ndarray) -> tuple:
         """The plan at times ``t``, in the base frame B, a tuple of 18 floats per sample:
@@ -663,9 +705,10 @@ class JointPathChecker:
         return [c.q for c in self.branches(X_WE) if c.collision_free and c.min_distance_m >= clearance]
 
     def follow_from_candidates(self, plan: TimedPlan, starts: Sequence[np.ndarray], *,
-                               max_starts: int = 3) -> JointPath:
+                               max_starts: int = 3, path_constraints: Sequence = ()) -> JointPath:
         """The first executable path over the first ``max_starts`` start candidates and
-        their windings, else the path of the first candidate (its blocker says why).
+        their windings, else the path of the first candidate (its blocker says why);
+        ``path_constraints`` as :meth:`follow`'s.
 
         A plan sharing a prefix with one followed before (the lazy search's next
         composition, the previous trial's plan) resumes where they part
@@ -677,7 +720,7 @@ class JointPathChecker:
             q0 = np.array(q_start, dtype=float)
             for _ in range(3):
                 tried.append(q0)
-                path = dataclasses.replace(self.follow(plan, q0), start_index=index)
+                path = dataclasses.replace(self.follow(plan, q0, path_constraints=path_constraints), start_index=index)
                 if first is None:
                     first = path
                 if path.executable:
