@@ -74,7 +74,7 @@ from drake_lfd.io.library import (
     is_unused_library_directory,
     tool_frame_options,
 )
-from drake_lfd.io.library_manifest import check_demo_name
+from drake_lfd.io.library_manifest import MANIFEST_NAME, check_demo_name
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
 from drake_lfd.io.strict_json import strict_json_text
 from drake_lfd.io.yaml_checks import angle_from_text
@@ -418,9 +418,20 @@ class _BulkAdd:
         """Adds the pending demonstrations in one turn of the library's lock."""
         if not self.pending:
             return
+        added = refused = None
+        pending = [item for _, item, _, _ in self.pending]
+        if self.library is None and len({item.entry.name.lower() for item in pending}) == len(pending):
+            try:  # the library and its first batch in one step: killed, it leaves no library
+                self.library = Library.create(self.args.library, self.X_tool0_E_new, first=pending)
+                added, refused = pending, []
+            except InputError:
+                if not (Path(self.args.library) / MANIFEST_NAME).is_file():
+                    raise  # (made a library meanwhile by another process: added to below)
         if self.library is None:
             self.library = Library.open_or_create(self.args.library, self.X_tool0_E_new)
-        added, refused = self.library.add_prepared([item for _, item, _, _ in self.pending])
+            added, refused = self.library.add_prepared(pending)
+        elif added is None:
+            added, refused = self.library.add_prepared(pending)
         taken = {position for position, _ in refused}
         for position, error in refused:
             self.refuse(self.pending[position][0], _NAME_TAKEN, _reason(error, self.library.label))

@@ -194,13 +194,17 @@ def remove_stale_temporaries(directory):
 def is_unused_library_directory(path):
     """True if ``path`` does not exist, or is a directory without a manifest that holds
     nothing but what a library write killed before its manifest leaves (the lock file,
-    temporary files, empty ``demos/`` and ``cache/``): a place a new library may go."""
+    temporary files, ``demos/`` (with the logs of a killed create when the lock file is
+    there) and an empty ``cache/``): a place a new library may go."""
     path = Path(path)
     if not path.exists():
         return True
     if not path.is_dir() or (path / MANIFEST_NAME).exists():
         return False
     debris = {str(p) for p in _temporaries(path)}
+    if (path / LOCK_NAME).is_file() and (path / DEMOS_DIRECTORY).is_dir():
+        # A create killed between its logs and its manifest (``Library.create(first=...)``).
+        debris |= {str(p) for p in (path / DEMOS_DIRECTORY).iterdir() if p.is_file()}
     for child in path.iterdir():
         if child.name == LOCK_NAME and child.is_file():
             continue
@@ -532,14 +536,20 @@ class Library:
         return library
 
     @classmethod
-    def create(cls, path, X_tool0_E=None, **feature_parameters):
-        """Creates an empty library directory (the directory may exist if empty).
+    def create(cls, path, X_tool0_E=None, *, first=(), **feature_parameters):
+        """Creates a library directory (the directory may exist if empty), empty or holding
+        ``first``.
 
         Parameters
         ----------
         path : str or Path
         X_tool0_E : RigidTransform, optional
             The end-effector frame of the demonstrations to come; identity by default.
+        first : sequence of prepared demonstrations (:meth:`prepare`), optional
+            Written in the same turn of the lock as the manifest, which lists them: the
+            manifest is the library, so a create killed before it leaves no library (its
+            logs are debris a later create clears), and one killed after leaves them all.
+            Their names must differ (ignoring case).
 
         Raises
         ------
@@ -575,10 +585,17 @@ class Library:
                     raise InputError(not_empty, file=path)
                 _make_directory(directory / DEMOS_DIRECTORY)
                 _make_directory(directory / CACHE_DIRECTORY)
+                if first:
+                    atomic_write_many([(directory / item.entry.file, item.log_bytes) for item in first])
+                    manifest = manifest.with_entries(tuple(item.entry for item in first))
                 write_manifest(directory, manifest)
         except BaseException:
-            if created and not (directory / MANIFEST_NAME).exists():
-                _remove_unused_directory(directory)
+            if not (directory / MANIFEST_NAME).exists():
+                for item in first:
+                    with contextlib.suppress(OSError):
+                        (directory / item.entry.file).unlink()
+                if created:
+                    _remove_unused_directory(directory)
             raise
         return cls(
             path=directory,
