@@ -95,9 +95,10 @@ def run(args) -> int:
         bar = ProgressBar("trials", args.trials)
 
         def progress(done, total, outcome):
-            lines.append(trial_summary_line(outcome, task))
+            line = trial_summary_line(outcome, task)
             if finished is not None:
                 finished.append(trial_record(task, outcome))
+            lines.append(line)  # (after the record is on disk: a trial printed as finished is kept)
             bar.update(done, "ok" if outcome.success else "failed")
 
         library.write_feature_caches()
