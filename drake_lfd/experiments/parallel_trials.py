@@ -39,7 +39,6 @@ import hashlib
 import importlib
 import logging
 import math
-import os
 import signal
 import sys
 import time
@@ -51,6 +50,7 @@ from typing import Callable, Iterator, Sequence
 import numpy as np
 
 from drake_lfd.core.errors import InputError
+from drake_lfd.core.option_values import default_workers
 from drake_lfd.planning.options import PlanningOptions
 
 __all__ = [
@@ -240,11 +240,6 @@ def run_trial_spec(spec: TrialSpec):
     """Runs one trial on this process's runner for its spec (built on first use); returns
     its :class:`~drake_lfd.experiments.simulation.TrialOutcome`. What the workers run."""
     return _runner_for(spec.runner).run(trial=spec.trial, seed=spec.seed, record_html=spec.record_html)
-
-
-def default_workers(trials: int) -> int:
-    """Every core, but no more workers than trials."""
-    return max(1, min(os.cpu_count() or 1, int(trials)))
 
 
 #: Dask's periodic housekeeping, slowed: the system monitors' samples and the
