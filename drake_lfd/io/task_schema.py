@@ -15,7 +15,6 @@ Not for: the values' meaning (ranges, ordering, names: :func:`drake_lfd.io.task_
 # types at run time and needs them as types, not strings.
 
 import dataclasses
-import importlib
 from pathlib import Path
 from typing import Any, Optional, Union
 
@@ -39,18 +38,21 @@ __all__ = [
 TASK_FILE_WORDS = {"document": "the task file", "keys": "task keys"}
 
 
-def _default(module, name):
-    """A default factory for a default that lives in a module importing Drake
-    (``TimingLimits``' limits, the angle grid): read when a Spec is made, which is when
-    Drake's loader fills it, never by the structure check."""
-
+# Two defaults live in modules that import Drake (TimingLimits' limits, the angle grid):
+# read when a Spec is made, which is when Drake's loader fills it, never by the check.
+def _timing_default(name):
     def factory():
-        value = importlib.import_module(f"drake_lfd.{module}")
-        for part in name.split("."):
-            value = getattr(value, part)
-        return value
+        from drake_lfd.core.timing import TimingLimits
+
+        return getattr(TimingLimits, name)
 
     return factory
+
+
+def _angle_grid_default():
+    from drake_lfd.core.tasks import DEFAULT_ANGLE_GRID_DEG
+
+    return DEFAULT_ANGLE_GRID_DEG
 
 
 # A coordinate or angle: a number-like token, or a [lower, upper] list of them.
@@ -120,13 +122,13 @@ class TimingSpec:
     """The ``timing:`` block: the limits the plan's time-optimal timing keeps to
     (:class:`~drake_lfd.core.timing.TimingLimits`, whose defaults these are)."""
 
-    joint_speed_rad_s: float = dataclasses.field(default_factory=_default("core.timing", "TimingLimits.joint_speed_rad_s"))
+    joint_speed_rad_s: float = dataclasses.field(default_factory=_timing_default("joint_speed_rad_s"))
     joint_acceleration_rad_s2: float = dataclasses.field(
-        default_factory=_default("core.timing", "TimingLimits.joint_acceleration_rad_s2"))
-    tool_speed_m_s: float = dataclasses.field(default_factory=_default("core.timing", "TimingLimits.tool_speed_m_s"))
+        default_factory=_timing_default("joint_acceleration_rad_s2"))
+    tool_speed_m_s: float = dataclasses.field(default_factory=_timing_default("tool_speed_m_s"))
     tool_acceleration_m_s2: Optional[float] = dataclasses.field(
         default=None, metadata={"expected": "a number (m/s^2), or absent for none"})
-    limit_fraction: float = dataclasses.field(default_factory=_default("core.timing", "TimingLimits.limit_fraction"))
+    limit_fraction: float = dataclasses.field(default_factory=_timing_default("limit_fraction"))
 
 
 @dataclasses.dataclass
@@ -138,7 +140,7 @@ class TaskSpec:
     description: str = ""
     X_WB: PoseSpec = dataclasses.field(default_factory=PoseSpec)
     X_tool0_E: PoseSpec = dataclasses.field(default_factory=PoseSpec)
-    angle_grid_deg: float = dataclasses.field(default_factory=_default("core.tasks", "DEFAULT_ANGLE_GRID_DEG"))
+    angle_grid_deg: float = dataclasses.field(default_factory=_angle_grid_default)
     variables: dict[str, list[Scalar]] = dataclasses.field(default_factory=dict)
     critical_configurations: list[CriticalConfigurationSpec] = required(list)
     obstacles: list[BoxSpec] = dataclasses.field(default_factory=list)
