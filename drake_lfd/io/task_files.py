@@ -131,7 +131,7 @@ __all__ = [
 ]
 
 #: Most critical configurations a task may have: planning time grows with the square of
-#: their number (100 fixed ones plan in about 15 s on one core, 200 take minutes).
+#: their number (100 fixed ones plan in seconds on one core, 200 take minutes).
 MAX_CRITICAL_CONFIGURATIONS = 100
 #: Most obstacles, and most safety shells, a task may have: every one is a clearance
 #: query per robot geometry at every step the plan-time check and the monitor take (a
