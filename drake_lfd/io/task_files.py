@@ -93,13 +93,6 @@ from drake_lfd.core.tool import ToolShape
 
 from drake_lfd.io import task_schema
 from drake_lfd.io.simulation_config import PipelineConfig
-from drake_lfd.io.task_schema import (
-    BoxSpec,
-    CriticalConfigurationSpec,
-    CylinderSpec,
-    PathConstraintSpec,
-    ToolShapeSpec,
-)
 
 # The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
 # scripts, so both report problems alike.
@@ -113,12 +106,8 @@ from drake_lfd.io.yaml_checks import (
     vector,
 )
 
+# The Spec dataclasses other than TaskSpec are io/task_schema.py's.
 __all__ = [
-    "CriticalConfigurationSpec",
-    "BoxSpec",
-    "CylinderSpec",
-    "ToolShapeSpec",
-    "PathConstraintSpec",
     "TaskSpec",
     "load_task_spec",
     "task_spec_from_text",
