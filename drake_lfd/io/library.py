@@ -86,7 +86,7 @@ from drake_lfd.core.features import (
     Feature,
     arc_lengths_from_poses,
 )
-from drake_lfd.core.resources import bundled_library_directories
+from drake_lfd.core.resources import bundled_library_directories, bundled_library_names, bundled_library_paths
 from drake_lfd.io.atomic_files import atomic_write_bytes, atomic_write_many, fsync_directory
 from drake_lfd.io.demonstration_logs import (
     check_plausible_motion,
@@ -363,28 +363,6 @@ class DemonstrationPreparer:
             demonstration, name, description, kinematics=self.kinematics, num_samples=self.num_samples,
             rotation_length_m=self.rotation_length_m, source=source, label=self.label,
         )
-
-
-def bundled_library_names():
-    """Names of the libraries bundled with drake-lfd (sorted; may be empty)."""
-    names = set()
-    for directory in bundled_library_directories():
-        if directory.is_dir():
-            names.update(p.name for p in directory.iterdir() if (p / MANIFEST_NAME).is_file())
-    return sorted(names)
-
-
-def bundled_library_paths():
-    """Name -> directory of each bundled library, where ``Library.open(name)`` finds it
-    (the first of :func:`~drake_lfd.core.resources.bundled_library_directories` that
-    has it), sorted by name."""
-    paths = {}
-    for directory in bundled_library_directories():
-        if directory.is_dir():
-            for candidate in sorted(directory.iterdir()):
-                if (candidate / MANIFEST_NAME).is_file() and candidate.name not in paths:
-                    paths[candidate.name] = candidate.resolve()
-    return dict(sorted(paths.items()))
 
 
 def tool_frame_options(X_tool0_E):
