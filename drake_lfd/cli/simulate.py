@@ -98,9 +98,13 @@ def run(args) -> int:
 
         def progress(done, total, outcome):
             line = trial_summary_line(outcome, task)
-            if finished is not None:
-                finished.append(trial_record(task, outcome))
-            lines.append(line)  # (after the record is on disk: a trial printed as finished is kept)
+            record = trial_record(task, outcome) if finished is not None else None
+            # The record on disk and the line printed on an interrupt go together: a Ctrl-C
+            # waits for both, and a failed write prints nothing.
+            with interrupts_deferred():
+                if finished is not None:
+                    finished.append(record)
+                lines.append(line)
             bar.update(done, "ok" if outcome.success else "failed")
 
         library.write_feature_caches()
