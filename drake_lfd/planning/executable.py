@@ -184,15 +184,18 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
         if steps is None:
             return ExecutableSearch(None, None, None, tuple(blocked), rounds - 1, tried_a_start)
 
-        def check(current: dict):
+        def check(current: dict, spans: range | None = None):
             """Composes with the mappings ``current`` and follows it from the start branch
-            ``start_index`` (with its windings); None when there is no such branch."""
+            ``start_index`` (with its windings); None when there is no such branch. A
+            composition ``repeats`` rules out in ``spans`` (all by default) is not
+            followed: only there does its blocker stand for the follow's (a later span's
+            would hide whether the spans before it run)."""
             composed = compose(steps, {i: current[s] for i, s in enumerate(steps) if s in current})
             timed = composed[0]
             starts = checker.start_candidates(RigidTransform(matrices_from_dual_quaternion(timed.poses[:1])[0]))
             if len(starts) <= start_index:
                 return composed, None
-            blocker = None if repeats is None else repeats.repeated(timed)
+            blocker = None if repeats is None else repeats.repeated(timed, spans)
             if blocker is not None:
                 return composed, JointPath(np.array([blocker.time_s]), np.zeros((0, 6)), blocker, (), math.inf,
                                            math.inf, math.inf, math.inf, start_index=start_index)
@@ -239,7 +242,7 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
             for option in alternatives(step):
                 trial = dict(overrides)
                 trial[step] = option
-                composed, path = check(trial)
+                composed, path = check(trial, range(step.j, step.k))
                 if path is not None and (path.executable or _blocking_index(steps, path.blocker) > index):
                     overrides = trial  # this mapping gets the arm past the step
                     passed = True

@@ -45,7 +45,6 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion, translation_from_dual_quaternion
-from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.planning.composition import CompositionProblem
 from drake_lfd.planning.executable import InfeasibleSegment
 from drake_lfd.robot.analytic_ik import shoulder_pan_roots
@@ -216,7 +215,7 @@ _PAN_MEMOS: "weakref.WeakKeyDictionary[JointPathChecker, dict]" = weakref.WeakKe
 
 def _pan_memo(checker: JointPathChecker) -> dict:
     """The checker's pan-only rows, their Lipschitz constant in shoulder_pan (the largest
-    distance of their points from the pan axis) and its pan sweeps by configuration."""
+    distance of their points from the pan axis) and its pan sweep (:func:`_pan_sweeps`)."""
     memo = _PAN_MEMOS.setdefault(checker, {})
     if "rows" not in memo:
         scene = checker.scene
@@ -224,8 +223,22 @@ def _pan_memo(checker: JointPathChecker) -> dict:
         plant, inspector = scene.plant, scene.scene_graph.model_inspector()
         ids = scene.geometry.robot_geometry_ids
         memo["lipschitz"] = max((float(motion_bounds(plant, inspector, ids[r])[0]) for r in rows), default=0.0)
-        memo["rows"], memo["sweeps"] = rows, ExactMemo(maxsize=8)
+        memo["rows"], memo["sweeps"] = rows, None
     return memo
+
+
+def _pan_sweeps(checker: JointPathChecker) -> "_PanClearance":
+    """The checker's pan-only clearance as a function of shoulder_pan (made once per
+    checker: the pan-only rows' distances do not depend on the other joints, so any
+    configuration serves; all joints but the pan at zero)."""
+    memo = _pan_memo(checker)
+    if memo.get("sweeps") is None:
+        scene, rows = checker.scene, memo["rows"]
+        pans = np.linspace(0.0, 2 * np.pi, PAN_GRID, endpoint=False)
+        q = np.zeros(6)
+        least = _pan_table(scene, q, rows, pans).reshape(PAN_GRID, -1).min(axis=1)
+        memo["sweeps"] = _PanClearance(scene, q, rows, pans, least, memo["lipschitz"], checker.limits.clearance_m)
+    return memo["sweeps"]
 
 
 def _pan_table(scene, q: np.ndarray, rows: np.ndarray, pans: np.ndarray) -> np.ndarray:
@@ -346,12 +359,9 @@ def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
     rows, lipschitz = memo["rows"], memo["lipschitz"]
     if not len(rows) or not np.isfinite(lipschitz):
         return []
-    pans = np.linspace(0.0, 2 * np.pi, PAN_GRID, endpoint=False)
-    q = np.array(good_branches[0][0], dtype=float)
     clearance = checker.limits.clearance_m
-    sweeps = memo["sweeps"].get(exact_key(q), lambda: _PanClearance(
-        scene, q, rows, pans, _pan_table(scene, q, rows, pans).reshape(PAN_GRID, -1).min(axis=1), lipschitz,
-        clearance))
+    sweeps = _pan_sweeps(checker)
+    q = np.zeros(6)
     segments = []
     for i in range(problem.num_cons - 1):
         closest = _closest_blocked_sweep(sweeps, good_branches[i], good_branches[i + 1])
@@ -393,72 +403,101 @@ def _closest_blocked_sweep(sweeps: _PanClearance, starts: list[np.ndarray], ends
 
 
 class RepeatedPanBlockers:
-    """Blockers a follow measured on a pan-only shape, and the compositions that repeat them.
+    """Rules out, unfollowed, the compositions whose poses turn shoulder_pan through a pan
+    where a pan-only shape is measured within the clearance.
 
     A shape whose clearance depends on shoulder_pan alone (:func:`_pan_only_rows`) and
-    that a follow found within the clearance at pan ``p`` blocks every path that turns
-    shoulder_pan through ``p``: the measurement is a witness whatever the other joints
-    do. A path's pan follows from its poses alone (:func:`~drake_lfd.robot.analytic_ik.
-    shoulder_pan_roots`, on the shoulder root the blocked path took; a path keeps it),
-    so a composition whose poses over the same span turn the pan through ``p``, by more
-    than :data:`PAN_REPEAT_MARGIN_RAD` either side (the follow lags its poses a little),
-    is ruled out with the same blocker without being followed. One instance serves one
-    start branch of one search (its shoulder root is that branch's)."""
+    is within the clearance at pan ``p`` blocks every path that turns shoulder_pan
+    through ``p``, whatever the other joints do; :class:`_PanClearance` measures where
+    (Drake's signed distances on the 1-degree grid, decided exactly between). A path's
+    pan follows from its poses alone (:func:`~drake_lfd.robot.analytic_ik.
+    shoulder_pan_roots`, on the shoulder root of its start; a path off the shoulder
+    singularity keeps it), so a composition whose poses over a span turn the pan across
+    a grid cell holding such a measurement, by more than :data:`PAN_REPEAT_MARGIN_RAD`
+    beyond it either side (the follow lags its poses a little), is blocked there like a
+    follow would find it, with a blocker of the same wording.
+
+    It wakes at the first blocked follow (:meth:`record`): a task whose first composition
+    runs pays nothing. One instance serves one start branch of one search."""
 
     def __init__(self, checker: JointPathChecker):
         self._checker = checker
-        ids = checker.scene.geometry.robot_geometry_ids
-        self._pan_only = {ids[r] for r in _pan_memo(checker)["rows"]}
+        memo = _pan_memo(checker)
+        self._rows = memo["rows"]
+        usable = (len(self._rows) and np.isfinite(memo["lipschitz"])
+                  and len(checker.scene.geometry.keep_out_geometry_ids))
+        self._usable = bool(usable)
         kinematics = checker.kinematics
         self._X_BW = kinematics.X_WB.inverse().GetAsMatrix4()
         self._X_E_tool0 = kinematics.X_tool0_E.inverse().GetAsMatrix4()
-        self._blocked: list[tuple[int, int, float, Blocker]] = []  # span, root, pan, blocker
+        self._sweeps: _PanClearance | None = None
+        self._root: int | None = None
         self.ruled_out = 0
 
-    def _roots(self, plan, span: int) -> tuple[np.ndarray, np.ndarray]:
-        """The plan's times and shoulder_pan roots (m, 2) over span ``span``."""
-        due = [plan.times[i] for i in plan.critical_indices]
-        inside = (plan.times >= due[span] - 1e-9) & (plan.times <= due[min(span + 1, len(due) - 1)] + 1e-9)
-        X_WE = matrices_from_dual_quaternion(plan.poses[inside])
-        return plan.times[inside], shoulder_pan_roots(self._X_BW @ X_WE @ self._X_E_tool0)
+    def _roots(self, plan) -> np.ndarray:
+        """The shoulder_pan roots (n, 2) of every pose of ``plan``."""
+        X_WE = matrices_from_dual_quaternion(plan.poses)
+        return shoulder_pan_roots(self._X_BW @ X_WE @ self._X_E_tool0)
 
     def record(self, plan, path) -> None:
-        """Remembers ``path``'s blocker when it is a pan-only shape too close (``plan``: the
-        plan followed)."""
-        blocker = path.blocker
-        if (blocker is None or blocker.reason != "collision" or blocker.pair is None
-                or blocker.pair[0] not in self._pan_only or not len(path.q)):
+        """Learns from a blocked follow of ``plan``: wakes, and takes the shoulder root of the
+        path's start."""
+        if not self._usable or path.executable or not len(path.q) or self._root is not None:
             return
-        times, roots = self._roots(plan, blocker.span)
-        if not len(times) or np.isnan(roots).any():
+        first = self._roots(plan)[0]
+        if np.isnan(first).any():
             return
-        pan = float(path.q[-1][0])
-        k = min(int(np.searchsorted(times, blocker.time_s)), len(times) - 1)
-        root = int(np.argmin(np.abs(np.remainder(roots[k] - pan + np.pi, 2 * np.pi) - np.pi)))
-        self._blocked.append((blocker.span, root, pan, blocker))
+        pan = float(path.q[0][0])
+        self._root = int(np.argmin(np.abs(np.remainder(first - pan + np.pi, 2 * np.pi) - np.pi)))
+        self._sweeps = _pan_sweeps(self._checker)
 
-    def repeated(self, plan) -> Blocker | None:
-        """A blocker remembered that ``plan`` repeats (its time moved to when ``plan``'s
-        pan passes it), else None."""
-        for span, root, pan, blocker in self._blocked:
-            if span >= len(plan.critical_indices) - 1:
+    def repeated(self, plan, spans: range | None = None) -> Blocker | None:
+        """The blocker ``plan`` meets turning its pan through a blocked cell, in the first
+        span (of ``spans``, 0-based; all by default) where it does; else None."""
+        if self._sweeps is None:
+            return None
+        sweeps = self._sweeps
+        roots = self._roots(plan)[:, self._root]
+        due = [int(i) for i in plan.critical_indices]
+        for span in range(len(due) - 1) if spans is None else spans:
+            sweep = roots[due[span]:due[span + 1] + 1]
+            if not len(sweep) or np.isnan(sweep).any():
                 continue
-            times, roots = self._roots(plan, span)
-            if not len(times) or np.isnan(roots[:, root]).any():
-                continue
-            sweep = np.unwrap(roots[:, root])
+            sweep = np.unwrap(sweep)
             low, high = sweep.min() + PAN_REPEAT_MARGIN_RAD, sweep.max() - PAN_REPEAT_MARGIN_RAD
-            turns = math.ceil((low - pan) / (2 * math.pi))
-            target = pan + 2 * math.pi * turns
-            if target <= high:
-                self.ruled_out += 1
-                k = int(np.argmin(np.abs(sweep - target)))
-                return dataclasses.replace(blocker, time_s=max(float(times[k]), 1e-9))
+            first, last = math.ceil(low / sweeps.step), math.floor(high / sweeps.step) - 1
+            if last < first:
+                continue
+            cells = np.arange(first, last + 1) % len(sweeps.pans)
+            blocked = cells[sweeps.cell_blocked[cells]]
+            if not len(blocked):
+                continue
+            # The blocked cell the path meets first, as the follow would.
+            k = blocked[0] if sweep[-1] >= sweep[0] else blocked[-1]
+            value, pan = float(sweeps.cell_least[k]), float(sweeps.cell_pan[k])
+            self.ruled_out += 1
+            crossing = int(np.argmin(np.abs(np.remainder(sweep - pan + np.pi, 2 * np.pi) - np.pi)))
+            time_s = float(plan.times[due[span] + crossing])
+            return self._blocker(value, pan, max(time_s, 1e-9), span)
         return None
 
+    def _blocker(self, value: float, pan: float, time_s: float, span: int) -> Blocker:
+        """The follow's wording for the pan-only shape nearest a box at ``pan``."""
+        scene = self._checker.scene
+        q = np.zeros(6)
+        q[0] = pan
+        distances = scene.signed_distances(q)[self._rows]
+        row, box = np.unravel_index(np.argmin(distances), distances.shape)
+        names = scene.geometry
+        robot_id, box_id = names.robot_geometry_ids[self._rows[row]], names.keep_out_geometry_ids[box]
+        what = names.describe(box_id)
+        verb = describe_clearance_shortfall(what, value, self._checker.limits.clearance_m)
+        return Blocker("collision", f"collision with {what}: {names.names.get(robot_id, robot_id)} {verb}", time_s,
+                       span, pair=(robot_id, box_id))
 
-# How far past a measured blocker's pan a path's poses must turn for it to count as
-# repeating it (the follow lags its poses by far less).
+
+# How far past a blocked grid cell a path's poses must turn for it to count as crossing it
+# (the follow lags its poses by far less).
 PAN_REPEAT_MARGIN_RAD = math.radians(1.0)
 
 
