@@ -347,7 +347,7 @@ def compose_plan(
     cost of each step (its allocation's total alpha), and the largest position and
     rotation corrections applied; ``per_step``, when given, receives each step's
     ``(position_m, rotation_rad)`` corrections. ``mapped_memo``, when given, keeps each
-    step's mapping by ``(step, first_index, twist)`` for the next call (the search composes
+    step's allocation and mapping by ``(step, first_index, twist)`` for the next call (the search composes
     the same steps again and again; a mapping depends on nothing else).
     """
     names = list(features)
@@ -359,22 +359,22 @@ def compose_plan(
     overrides = overrides or {}
     for index, step in enumerate(steps):
         first_index, twist = overrides.get(index, (None, None))
-        span = problem.span_allocation(step, first_index)
-        costs.append(span.allocation.cost)
-        for offset, candidate in enumerate(span.candidates):
-            chosen[step.j + offset] = angles[step.j + offset][candidate]
-        task_poses = np.array(
-            [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)]
-        )
-        feature = features[names[step.demo]]
         key = (step, first_index, None if twist is None else float(twist))
         if mapped_memo is not None and key in mapped_memo:
-            mapped = mapped_memo[key]
+            span, mapped = mapped_memo[key]
         else:
+            span = problem.span_allocation(step, first_index)
+            task_poses = np.array(
+                [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)]
+            )
+            feature = features[names[step.demo]]
             mapped, _twist = map_span_clear(feature.poses, span.allocation, task_poses, keep_out, floor_z, points_E,
                                             twist=twist)
             if mapped_memo is not None:
-                mapped_memo[key] = mapped
+                mapped_memo[key] = span, mapped
+        costs.append(span.allocation.cost)
+        for offset, candidate in enumerate(span.candidates):
+            chosen[step.j + offset] = angles[step.j + offset][candidate]
         start = sum(len(p) for p in pieces) - (1 if pieces else 0)
         pieces.append(mapped.poses if not pieces else mapped.poses[1:])
         anchors = np.asarray(mapped.anchor_indices)
@@ -530,9 +530,9 @@ def plan_composition(
             key = (step, None, twist)  # compose_plan's key for the same mapping
             if key not in mapped_memo:
                 span, task_poses = span_poses(step, None)
-                mapped_memo[key], _ = map_span_clear(feature_list[step.demo].poses, span.allocation, task_poses,
-                                                     twist=twist)
-            correction_memo[step] = mapped_memo[key].max_correction_position_m
+                mapped, _ = map_span_clear(feature_list[step.demo].poses, span.allocation, task_poses, twist=twist)
+                mapped_memo[key] = span, mapped
+            correction_memo[step] = mapped_memo[key][1].max_correction_position_m
         return correction_memo[step]
 
     if cost == "fidelity":  # the paper's cost keeps Eq. 31 and its choices as they are

@@ -47,7 +47,7 @@ from pydrake.math import RigidTransform
 from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion, translation_from_dual_quaternion
 from drake_lfd.planning.composition import CompositionProblem
 from drake_lfd.planning.executable import InfeasibleSegment
-from drake_lfd.robot.analytic_ik import shoulder_pan_roots
+from drake_lfd.robot.analytic_ik import elbow_and_wrist_sines, shoulder_pan_roots
 from drake_lfd.robot.motion_bounds import motion_bounds
 from drake_lfd.robot.joint_path import (
     Blocker, JointPathChecker, describe_clearance_shortfall, describe_shoulder_shortfall, shoulder_singularity_distance,
@@ -403,83 +403,107 @@ def _closest_blocked_sweep(sweeps: _PanClearance, starts: list[np.ndarray], ends
 
 
 class RepeatedPanBlockers:
-    """Rules out, unfollowed, the compositions whose poses turn shoulder_pan through a pan
-    where a pan-only shape is measured within the clearance.
+    """Rules out, unfollowed, the compositions whose poses alone show the follow would be
+    blocked: turning shoulder_pan through a pan where a pan-only shape is within the
+    clearance, or driving the elbow or the wrist deep into its singularity.
 
-    A shape whose clearance depends on shoulder_pan alone (:func:`_pan_only_rows`) and
-    is within the clearance at pan ``p`` blocks every path that turns shoulder_pan
-    through ``p``, whatever the other joints do; :class:`_PanClearance` measures where
-    (Drake's signed distances on the 1-degree grid, decided exactly between). A path's
-    pan follows from its poses alone (:func:`~drake_lfd.robot.analytic_ik.
-    shoulder_pan_roots`, on the shoulder root of its start; a path off the shoulder
-    singularity keeps it), so a composition whose poses over a span turn the pan across
-    a grid cell holding such a measurement, by more than :data:`PAN_REPEAT_MARGIN_RAD`
-    beyond it either side (the follow lags its poses a little), is blocked there like a
-    follow would find it, with a blocker of the same wording.
+    A path keeps the inverse-kinematics branch it starts on (changing it crosses a
+    singularity), and on a branch the joints follow from the tool's poses in closed
+    form (:mod:`~drake_lfd.robot.analytic_ik`): the pan (the branch's shoulder root) and
+    ``|sin q3|``, ``|sin q5|``. So:
 
-    It wakes at the first blocked follow (:meth:`record`): a task whose first composition
-    runs pays nothing. One instance serves one start branch of one search."""
+    - a shape whose clearance depends on shoulder_pan alone (:func:`_pan_only_rows`) and
+      is within the clearance at pan ``p`` (:class:`_PanClearance`: Drake's signed
+      distances on the 1-degree grid, decided exactly between) blocks every path whose
+      poses over a span turn the pan across ``p`` by more than
+      :data:`PAN_REPEAT_MARGIN_RAD` either side (the follow lags its poses a little);
+    - poses that put ``|sin q3|`` or ``|sin q5|`` below :data:`SINGULARITY_DEPTH` of the
+      check's margin, or out of the branch's reach (past its singularity), take the
+      follow there or make it fall behind its plan: blocked.
+
+    Such a composition is blocked where its poses say, with the follow's wording. It
+    wakes at the first blocked follow (:meth:`record`), taking the branch of that path's
+    start: a task whose first composition runs pays nothing. One instance serves one
+    start branch of one search."""
 
     def __init__(self, checker: JointPathChecker):
         self._checker = checker
         memo = _pan_memo(checker)
         self._rows = memo["rows"]
-        usable = (len(self._rows) and np.isfinite(memo["lipschitz"])
-                  and len(checker.scene.geometry.keep_out_geometry_ids))
-        self._usable = bool(usable)
+        self._pans_usable = bool(len(self._rows) and np.isfinite(memo["lipschitz"])
+                                 and len(checker.scene.geometry.keep_out_geometry_ids))
         kinematics = checker.kinematics
         self._X_BW = kinematics.X_WB.inverse().GetAsMatrix4()
         self._X_E_tool0 = kinematics.X_tool0_E.inverse().GetAsMatrix4()
         self._sweeps: _PanClearance | None = None
-        self._root: int | None = None
+        self._branch: tuple[int, int] | None = None  # (shoulder root, wrist sign)
         self.ruled_out = 0
 
-    def _roots(self, plan) -> np.ndarray:
-        """The shoulder_pan roots (n, 2) of every pose of ``plan``."""
-        X_WE = matrices_from_dual_quaternion(plan.poses)
-        return shoulder_pan_roots(self._X_BW @ X_WE @ self._X_E_tool0)
+    def _tool0_poses(self, plan) -> np.ndarray:
+        """X_B_tool0 (n, 4, 4) of every pose of ``plan``."""
+        return self._X_BW @ matrices_from_dual_quaternion(plan.poses) @ self._X_E_tool0
 
     def record(self, plan, path) -> None:
-        """Learns from a blocked follow of ``plan``: wakes, and takes the shoulder root of the
+        """Learns from a blocked follow of ``plan``: wakes, and takes the branch of the
         path's start."""
-        if not self._usable or path.executable or not len(path.q) or self._root is not None:
+        if path.executable or not len(path.q) or self._branch is not None:
             return
-        first = self._roots(plan)[0]
-        if np.isnan(first).any():
+        first = shoulder_pan_roots(self._tool0_poses(plan)[:1])[0]
+        q0 = path.q[0]
+        if np.isnan(first).any() or math.sin(q0[4]) == 0.0:
             return
-        pan = float(path.q[0][0])
-        self._root = int(np.argmin(np.abs(np.remainder(first - pan + np.pi, 2 * np.pi) - np.pi)))
-        self._sweeps = _pan_sweeps(self._checker)
+        root = int(np.argmin(np.abs(np.remainder(first - q0[0] + np.pi, 2 * np.pi) - np.pi)))
+        self._branch = (root, 1 if math.sin(q0[4]) > 0.0 else -1)
+        if self._pans_usable:
+            self._sweeps = _pan_sweeps(self._checker)
 
     def repeated(self, plan, spans: range | None = None) -> Blocker | None:
-        """The blocker ``plan`` meets turning its pan through a blocked cell, in the first
-        span (of ``spans``, 0-based; all by default) where it does; else None."""
-        if self._sweeps is None:
+        """The blocker ``plan``'s poses show in the first span (of ``spans``, 0-based; all by
+        default) where they show one; else None."""
+        if self._branch is None:
             return None
-        sweeps = self._sweeps
-        roots = self._roots(plan)[:, self._root]
+        root, wrist = self._branch
+        poses = self._tool0_poses(plan)
+        pans = shoulder_pan_roots(poses)[:, root]
+        # Poses the branch cannot reach (NaN) lie past the singularity: a sine of zero.
+        elbow, wrist_sine = (np.nan_to_num(sines, nan=0.0) for sines in elbow_and_wrist_sines(poses, root, wrist))
+        limits = self._checker.limits
         due = [int(i) for i in plan.critical_indices]
         for span in range(len(due) - 1) if spans is None else spans:
-            sweep = roots[due[span]:due[span + 1] + 1]
-            if not len(sweep) or np.isnan(sweep).any():
-                continue
-            sweep = np.unwrap(sweep)
-            low, high = sweep.min() + PAN_REPEAT_MARGIN_RAD, sweep.max() - PAN_REPEAT_MARGIN_RAD
-            first, last = math.ceil(low / sweeps.step), math.floor(high / sweeps.step) - 1
-            if last < first:
-                continue
-            cells = np.arange(first, last + 1) % len(sweeps.pans)
-            blocked = cells[sweeps.cell_blocked[cells]]
-            if not len(blocked):
-                continue
-            # The blocked cell the path meets first, as the follow would.
-            k = blocked[0] if sweep[-1] >= sweep[0] else blocked[-1]
-            value, pan = float(sweeps.cell_least[k]), float(sweeps.cell_pan[k])
-            self.ruled_out += 1
-            crossing = int(np.argmin(np.abs(np.remainder(sweep - pan + np.pi, 2 * np.pi) - np.pi)))
-            time_s = float(plan.times[due[span] + crossing])
-            return self._blocker(value, pan, max(time_s, 1e-9), span)
+            window = slice(due[span], due[span + 1] + 1)
+            for sines, margin, what, joint in ((elbow[window], limits.elbow_margin, "elbow straight", 3),
+                                               (wrist_sine[window], limits.wrist_margin, "wrist aligned", 5)):
+                if len(sines) and sines.min() < SINGULARITY_DEPTH * margin:
+                    k = int(np.flatnonzero(sines < margin)[0])
+                    self.ruled_out += 1
+                    return Blocker("singularity", f"{what} (|sin q{joint}| = {float(sines.min()):.3f} < {margin:g})",
+                                   max(float(plan.times[due[span] + k]), 1e-9), span)
+            if self._sweeps is not None:
+                blocker = self._pan_blocker(pans[window], plan.times[window], span)
+                if blocker is not None:
+                    self.ruled_out += 1
+                    return blocker
         return None
+
+    def _pan_blocker(self, sweep: np.ndarray, times: np.ndarray, span: int) -> Blocker | None:
+        """The blocker of a pan sweep (one span's pans and times) across a blocked cell."""
+        sweeps = self._sweeps
+        if not len(sweep) or np.isnan(sweep).any():
+            return None
+        sweep = np.unwrap(sweep)
+        low, high = sweep.min() + PAN_REPEAT_MARGIN_RAD, sweep.max() - PAN_REPEAT_MARGIN_RAD
+        first, last = math.ceil(low / sweeps.step), math.floor(high / sweeps.step) - 1
+        if last < first:
+            return None
+        cells = np.arange(first, last + 1) % len(sweeps.pans)
+        blocked = cells[sweeps.cell_blocked[cells]]
+        if not len(blocked):
+            return None
+        # The blocked cell the path meets first, as the follow would.
+        k = blocked[0] if sweep[-1] >= sweep[0] else blocked[-1]
+        value, pan = float(sweeps.cell_least[k]), float(sweeps.cell_pan[k])
+        crossing = int(np.argmin(np.abs(np.remainder(sweep - pan + np.pi, 2 * np.pi) - np.pi)))
+        return self._blocker(value, pan, max(float(times[crossing]), 1e-9), span)
 
     def _blocker(self, value: float, pan: float, time_s: float, span: int) -> Blocker:
         """The follow's wording for the pan-only shape nearest a box at ``pan``."""
@@ -494,6 +518,12 @@ class RepeatedPanBlockers:
         verb = describe_clearance_shortfall(what, value, self._checker.limits.clearance_m)
         return Blocker("collision", f"collision with {what}: {names.names.get(robot_id, robot_id)} {verb}", time_s,
                        span, pair=(robot_id, box_id))
+
+
+# How deep below the check's margin a singularity's sine must go on a path's poses for it
+# to rule the path out unfollowed (the follow tracks its poses closely, so it meets the
+# margin too, or falls behind its plan trying).
+SINGULARITY_DEPTH = 0.5
 
 
 # How far past a blocked grid cell a path's poses must turn for it to count as crossing it

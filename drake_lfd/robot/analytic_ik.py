@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-__all__ = ["UR5E_DH_D", "UR5E_DH_A", "ur5e_branches", "shoulder_pan_roots"]
+__all__ = ["UR5E_DH_D", "UR5E_DH_A", "ur5e_branches", "shoulder_pan_roots", "elbow_and_wrist_sines"]
 
 # Universal Robots' UR5e DH parameters (m): link offsets d and lengths a (standard DH;
 # alpha = pi/2, 0, 0, pi/2, -pi/2, 0). The URDF's forward kinematics equals the table's
@@ -103,3 +103,31 @@ def shoulder_pan_roots(T_B_tool0: np.ndarray) -> np.ndarray:
         offset = np.where(radius >= _D4, np.arccos(np.minimum(_D4 / radius, 1.0)), np.nan)
     bearing = np.arctan2(-B, A)
     return np.stack([bearing + offset, bearing - offset], axis=1)
+
+
+def elbow_and_wrist_sines(T_B_tool0: np.ndarray, root: int, wrist: int) -> tuple[np.ndarray, np.ndarray]:
+    """``|sin q3|`` and ``|sin q5|`` (m,) of the branch with shoulder root ``root`` (0 or 1,
+    as :func:`shoulder_pan_roots` orders them) and wrist sign ``wrist`` (the sign of ``sin
+    q5``) at each pose of ``T_B_tool0`` (m, 4, 4): the margins of the elbow and wrist
+    singularities along a path that keeps that branch, in closed form as
+    :func:`ur5e_branches` solves them (the elbow's sign changes neither). NaN where the
+    branch does not reach the pose."""
+    T = np.asarray(T_B_tool0, dtype=float)
+    q1 = shoulder_pan_roots(T)[:, root]
+    c1, s1 = np.cos(q1), np.sin(q1)
+    T00, T01, T02, T03 = T[:, 0, 0], T[:, 0, 1], T[:, 0, 2], T[:, 0, 3]
+    T10, T11, T12, T13 = T[:, 1, 0], T[:, 1, 1], T[:, 1, 2], T[:, 1, 3]
+    T20, T21, T22, T23 = T[:, 2, 0], T[:, 2, 1], T[:, 2, 2], T[:, 2, 3]
+    cos5 = (T03 * s1 - T13 * c1 - _D4) / _D6
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos5 = np.where(np.abs(cos5) <= 1.0 + 1e-12, np.clip(cos5, -1.0, 1.0), np.nan)
+        s5 = wrist * np.sqrt(1.0 - cos5 * cos5)
+        q6 = np.arctan2(-(T01 * s1 - T11 * c1) / s5, (T00 * s1 - T10 * c1) / s5)
+        c6, s6 = np.cos(q6), np.sin(q6)
+        p13x = (_D5 * (s6 * (T00 * c1 + T10 * s1) + c6 * (T01 * c1 + T11 * s1))
+                - _D6 * (T02 * c1 + T12 * s1) + T03 * c1 + T13 * s1)
+        p13y = T23 - _D1 - _D6 * T22 + _D5 * (T21 * c6 + T20 * s6)
+        cos3 = (p13x * p13x + p13y * p13y - _A2 * _A2 - _A3 * _A3) / (2.0 * _A2 * _A3)
+        cos3 = np.where(np.abs(cos3) <= 1.0 + 1e-12, np.clip(cos3, -1.0, 1.0), np.nan)
+        return np.sqrt(1.0 - cos3 * cos3), np.abs(s5)
+
