@@ -94,6 +94,7 @@ from drake_lfd.core.tool import ToolShape
 
 # The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
 # scripts, so both report problems alike.
+from drake_lfd.io.people_files import CollaborationSpec, PersonSpec, collaboration_from_spec, people_from_specs
 from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.io.yaml_checks import (
     PoseSpec,
@@ -237,6 +238,10 @@ class TaskSpec:
     # Absent (None): the default tool sized from X_tool0_E; [] for no tool geometry.
     tool: Optional[list[ToolShapeSpec]] = dataclasses.field(
         default=None, metadata={"expected": "a list of tool shapes ([] for none)"})
+    # People in the cell and speed and separation monitoring (io/people_files.py).
+    people: list[PersonSpec] = dataclasses.field(default_factory=list)
+    collaboration: Optional[CollaborationSpec] = dataclasses.field(
+        default=None, metadata={"expected": "a mapping of collaboration keys ({} for the defaults)"})
 
 
 # ----------------------------------------------------------------------------- loading
@@ -496,6 +501,8 @@ def task_from_spec(spec, *, file=None):
         simulation=spec.simulation.checked(file=file),
         tool=_tool(spec.tool, file=file),
         timing=_timing(spec.timing, file=file),
+        people=people_from_specs(spec.people, file=file),
+        collaboration=None if spec.collaboration is None else collaboration_from_spec(spec.collaboration, file=file),
     )
 
 

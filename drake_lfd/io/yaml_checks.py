@@ -366,6 +366,11 @@ def check_schema(value, schema, path, file, expected=None):
                 if typing.get_origin(alternative) is list:
                     check_schema(value, alternative, path, file)
                     return
+        elif isinstance(value, dict):  # an optional block: Optional[SomeSpec]
+            for alternative in alternatives:
+                if dataclasses.is_dataclass(alternative):
+                    check_schema(value, alternative, path, file)
+                    return
         elif any(
             alternative in (float, int, str) and _matches_scalar(value, alternative)
             for alternative in alternatives
