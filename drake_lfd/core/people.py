@@ -83,6 +83,13 @@ class BodySize:
     arm_radius_m: float = 0.06
     arm_length_m: float = 0.8
 
+    def capsule_lengths(self) -> tuple[float, float, float]:
+        """The cylinder lengths of the torso (floor to shoulders), the head (shoulders to
+        the top of the head) and an arm (shoulder to fingertip), caps excluded, m."""
+        return (self.shoulder_height_m - 2.0 * self.torso_radius_m,
+                self.head_top_m - self.shoulder_height_m - 2.0 * self.head_radius_m,
+                self.arm_length_m - self.arm_radius_m)
+
     def __post_init__(self):
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
@@ -197,13 +204,14 @@ class RecordedTrack:
         return float(self.t[-1])
 
 
-def _capsule_between(name: str, radius: float, p_start: np.ndarray, p_end: np.ndarray) -> CapsulePose:
-    """The capsule of ``radius`` whose axis segment runs from ``p_start`` to ``p_end``."""
-    axis = np.asarray(p_end, dtype=float) - np.asarray(p_start, dtype=float)
-    length = float(np.linalg.norm(axis))
-    z = axis / length if length > 1e-9 else np.array([0.0, 0.0, 1.0])
+def _capsule_along(name: str, radius: float, length: float, p_start: np.ndarray, p_toward: np.ndarray) -> CapsulePose:
+    """The capsule of ``radius`` whose axis segment of ``length`` starts at ``p_start``
+    and points toward ``p_toward`` (straight up when they coincide)."""
+    axis = np.asarray(p_toward, dtype=float) - np.asarray(p_start, dtype=float)
+    norm = float(np.linalg.norm(axis))
+    z = axis / norm if norm > 1e-9 else np.array([0.0, 0.0, 1.0])
     R_WC = RotationMatrix.MakeFromOneVector(z, 2)
-    return CapsulePose(name, radius, length, RigidTransform(R_WC, 0.5 * (np.asarray(p_start) + np.asarray(p_end))))
+    return CapsulePose(name, radius, length, RigidTransform(R_WC, np.asarray(p_start, dtype=float) + 0.5 * length * z))
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -253,24 +261,21 @@ class Person:
         return np.array([pelvis, neck, head, shoulders[0], hands[0], shoulders[1], hands[1]])
 
     def capsules(self, t: float, *, floor_z: float, face_xy) -> tuple[CapsulePose, ...]:
-        """The four capsules at ``t`` (:data:`CAPSULE_NAMES` order). The torso runs from
-        the floor under the pelvis to the neck, the head from the neck's top to the head
-        keypoint, each arm from its shoulder to its hand."""
+        """The four capsules at ``t`` (:data:`CAPSULE_NAMES` order), each of the body's
+        fixed size (:meth:`BodySize.capsule_lengths`): the torso from the floor under
+        the pelvis up toward the neck, the head from the neck up toward the head
+        keypoint, each arm from its shoulder toward its hand."""
         body = self.body
         pelvis, neck, head, l_shoulder, l_hand, r_shoulder, r_hand = self.keypoints(t, floor_z=floor_z,
                                                                                       face_xy=face_xy)
+        torso, head_length, arm = body.capsule_lengths()
         floor_point = np.array([pelvis[0], pelvis[1], floor_z + body.torso_radius_m])
-        neck_point = neck - np.array([0.0, 0.0, body.torso_radius_m])
-        if neck_point[2] < floor_point[2]:
-            neck_point = floor_point.copy()
         head_bottom = neck + np.array([0.0, 0.0, body.head_radius_m])
-        if head_bottom[2] > head[2]:
-            head_bottom = head.copy()
         return (
-            _capsule_between("torso", body.torso_radius_m, floor_point, neck_point),
-            _capsule_between("head", body.head_radius_m, head_bottom, head),
-            _capsule_between("left_arm", body.arm_radius_m, l_shoulder, l_hand),
-            _capsule_between("right_arm", body.arm_radius_m, r_shoulder, r_hand),
+            _capsule_along("torso", body.torso_radius_m, torso, floor_point, neck),
+            _capsule_along("head", body.head_radius_m, head_length, head_bottom, head),
+            _capsule_along("left_arm", body.arm_radius_m, arm, l_shoulder, l_hand),
+            _capsule_along("right_arm", body.arm_radius_m, arm, r_shoulder, r_hand),
         )
 
 
@@ -323,6 +328,10 @@ class CollaborationParameters:
     max_speed_m_s : float
         1.5 m/s: the fastest any robot point moves (UR's default safety tool speed limit;
         the plans keep to 0.9 of it); used for the stop-only radius.
+    max_time_lost_s : float
+        60 s: a run whose path is still unfinished this long after the plan's nominal end
+        is ended there (someone stood in the way), and its remaining critical
+        configurations count as not reached.
     """
 
     policy: str = SSM_POLICY
@@ -336,6 +345,7 @@ class CollaborationParameters:
     floor_z_m: float = -0.75
     moving_toward_speed_m_s: float = 0.001
     max_speed_m_s: float = 1.5
+    max_time_lost_s: float = 60.0
 
     def __post_init__(self):
         if self.policy not in POLICIES:
@@ -372,27 +382,30 @@ def rate_limited(target: float, current: float, max_step: float) -> float:
     return float(min(max(target, current - max_step), current + max_step))
 
 
-def separation_override(distance_m: float, full_speed_m_s: float, current: float,
-                        parameters: CollaborationParameters, stopping_time_s: float, time_step: float) -> float:
-    """The largest speed override in [0, 1] that keeps ``d >= S_p`` for one person
+def separation_override(distance_m: float, full_speed_m_s: float, parameters: CollaborationParameters,
+                        stopping_time_s: float, time_step: float) -> float:
+    """The largest speed override ``o`` in [0, 1] that keeps ``d >= S_p`` for one person
     (before the rate limit).
 
     ``distance_m``: d, the least distance between the person and the robot;
-    ``full_speed_m_s``: how fast the robot's closest point moves at override 1 (its
-    speed, not only its part toward the person, so a turn of the path toward the person
-    is covered); ``current``: the override now. The person may close in at ``v_h`` while
-    the override ramps from ``current`` to 0 (``current T_s``, plus one period), so d is
-    first reduced by that much: whenever the robot still moves, ``d >= S_p`` holds at
-    its speed. 0 (a protective stop) when even a standing robot would be too close.
+    ``full_speed_m_s``: ``u``, how fast the robot's closest point moves at override 1
+    (its speed, not only its part toward the person, so a turn of the path toward the
+    person is covered). The person may close in at ``v_h`` while the override ramps from
+    ``o`` down to 0 (within ``o T_s``, plus one period to react), so ``o`` must satisfy::
+
+        d - v_h (o T_s + dt) >= S_p(o u) = S_p(0) + o u (T_r + T_s / 2)
+
+    that is ``o <= (d - v_h dt - S_p(0)) / (u (T_r + T_s / 2) + v_h T_s)``. As ``d``
+    falls at ``v_h`` this bound falls at most ``1 / T_s`` per second, the ramp's own rate,
+    so the ramped override keeps up with it. 0 (a protective stop) when even a standing
+    robot would be too close.
     """
-    reserve = parameters.human_speed_m_s * (current * stopping_time_s + time_step)
-    room = distance_m - reserve - parameters.standstill_distance_m(stopping_time_s)
-    if room < 0.0:
+    room = distance_m - parameters.human_speed_m_s * time_step - parameters.standstill_distance_m(stopping_time_s)
+    if room <= 0.0:
         return 0.0
-    per_unit = max(full_speed_m_s, 0.0) * (parameters.reaction_time_s + 0.5 * stopping_time_s)
-    if per_unit <= room:
-        return 1.0
-    return float(room / per_unit)
+    per_unit = (max(full_speed_m_s, 0.0) * (parameters.reaction_time_s + 0.5 * stopping_time_s)
+                + parameters.human_speed_m_s * stopping_time_s)
+    return float(min(room / per_unit, 1.0))
 
 
 def stop_only_radius_m(parameters: CollaborationParameters, stopping_time_s: float, time_step: float) -> float:

@@ -213,7 +213,13 @@ class ClosedLoopRunner:
             # To the end of the plan in force (the Diagram would end the run at its first
             # check after it; stopping at the end keeps the log to the plan's own span).
             end = plan_end_time_s(pipeline.plan_output_port.Eval(context))
-            if end is None or context.get_time() >= end - 1e-12:
+            if pipeline.people:
+                # The path runs in scaled time: the end is where the path position reaches
+                # it, at least the remaining path time later (never sooner).
+                if end is None or pipeline.path_time_s(context) >= end - 1e-9:
+                    break
+                end = context.get_time() + max(end - pipeline.path_time_s(context), pipeline.law.time_step)
+            elif end is None or context.get_time() >= end - 1e-12:
                 break
             status = simulator.AdvanceTo(min(end, changes[0][0]) if changes else end)
             if status.reason() == status.ReturnReason.kReachedTerminationCondition:
@@ -221,7 +227,7 @@ class ClosedLoopRunner:
                 break
         scheduled = pipeline.plan_output_port.Eval(context)
         end = plan_end_time_s(scheduled)
-        early = end is not None and context.get_time() < end - 1e-9
+        early = end is not None and pipeline.path_time_s(context) < end - 1e-9
         # Reading the run off the Context (the monitor measures the logged samples there)
         # is part of the closed loop's time.
         result = pipeline.trial_result(context, stop_reason=stop_reason if early else "",

@@ -109,6 +109,7 @@ class CollaborationSpec:
     floor_z_m: float = CollaborationParameters.floor_z_m
     moving_toward_speed_m_s: float = CollaborationParameters.moving_toward_speed_m_s
     max_speed_m_s: float = CollaborationParameters.max_speed_m_s
+    max_time_lost_s: float = CollaborationParameters.max_time_lost_s
 
 
 @dataclasses.dataclass
@@ -265,7 +266,7 @@ def collaboration_from_spec(spec, *, file=None, field="collaboration") -> Collab
         raise InputError(f"unknown policy {spec.policy!r} (known: {', '.join(POLICIES)})",
                          file=file, field=f"{field}.policy")
     values = {"policy": spec.policy}
-    for name in ("human_speed_m_s", "reaction_time_s", "max_speed_m_s"):
+    for name in ("human_speed_m_s", "reaction_time_s", "max_speed_m_s", "max_time_lost_s"):
         values[name] = _positive(getattr(spec, name), file=file, field=f"{field}.{name}")
     for name in ("intrusion_distance_m", "human_position_uncertainty_m", "robot_position_uncertainty_m",
                  "moving_toward_speed_m_s"):
