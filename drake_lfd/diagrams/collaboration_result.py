@@ -133,13 +133,14 @@ def collaboration_record_from_log(t: np.ndarray, data: np.ndarray, *, people, pa
                                   time_step: float) -> CollaborationRecord:
     """The record of a run from the ``status`` log: sample times ``t`` (m,) and ``data``
     (3 + 5 P, m), as the logger keeps them."""
-    t = np.asarray(t, dtype=float)
-    data = np.asarray(data, dtype=float)
+    # Copies: a logger's arrays are views of memory the next run reuses.
+    t = np.array(t, dtype=float)
+    data = np.array(data, dtype=float)
     fields, count = len(SEPARATION_FIELDS), len(people)
     offset = len(STATUS_FIELDS)
     # The first sample is the state before the first update (no separation measured yet).
     per_person = data[offset:, 1:].reshape(count, fields, -1) if len(t) > 1 else np.zeros((count, fields, 0))
-    column = lambda name: per_person[:, SEPARATION_FIELDS.index(name), :].T  # noqa: E731
+    column = lambda name: per_person[:, SEPARATION_FIELDS.index(name), :].T.copy()  # noqa: E731
     return CollaborationRecord(
         t=t, path_time_s=data[0].copy(), override=data[1].copy(), separation_t=t[1:] - time_step,
         distance_m=column("distance_m"), speed_toward_m_s=column("speed_toward_m_s"),

@@ -393,6 +393,8 @@ class Pipeline(Diagram):
         self.SetDefaultContext(context)
         context.SetTime(0.0)
         self.logger.FindMutableLog(context).Clear()  # the log is the Context's, but no state
+        if self.collaboration_logger is not None:
+            self.collaboration_logger.FindMutableLog(context).Clear()
         if self.planner is None:
             scheduled = self.plan_output_port.Eval(context)
         else:

@@ -55,6 +55,7 @@ __all__ = [
     'SUMMARY_REASON_CHARACTERS',
     'shorten_reason',
     'describe_boxes',
+    'people_cost',
 ]
 
 
@@ -334,8 +335,9 @@ def describe_boxes(task: Task | None) -> str:
 
 def trial_summary_line(outcome: TrialOutcome, task: Task | None = None) -> str:
     """One console line per trial: composition (with ``--refine``, ``refined`` or why it
-    was not), closest approach to the boxes, and the verdict with every failure reason
-    (each cut to :data:`SUMMARY_REASON_CHARACTERS`).
+    was not), closest approach to the boxes, with people in the cell what they cost
+    (:func:`people_cost`), and the verdict with every failure reason (each cut to
+    :data:`SUMMARY_REASON_CHARACTERS`).
 
     ``task`` (or, without it, the trial's planned task) says which obstacles and shells
     the scene has, so a trial that did not run reads ``no run (1 obstacle, 1 shell)``.
@@ -354,4 +356,15 @@ def trial_summary_line(outcome: TrialOutcome, task: Task | None = None) -> str:
     refinement = getattr(outcome.plan, "refinement", None) if outcome.plan is not None else None
     if refinement is not None:  # planned with --refine: whether it took, or why not
         composition += "; refined" if refinement.refined else f"; not refined: {shorten_reason(refinement.reason)}"
+    record = outcome.run.collaboration if outcome.run is not None else None
+    if record is not None:
+        clearance += "; " + people_cost(record)
     return f"trial {outcome.trial} (seed {outcome.seed}): {composition}; {clearance}; {verdict}"
+
+
+def people_cost(record) -> str:
+    """``people cost 4.9 s (slowed 5.6 s, 1 protective stop, closest 0.54 m)``: what
+    the people in the cell cost a run (a
+    :class:`~drake_lfd.diagrams.collaboration_result.CollaborationRecord`)."""
+    return (f"people cost {record.time_lost_s:.1f} s (slowed {record.time_scaled_s:.1f} s, "
+            f"{_count(record.protective_stops, 'protective stop')}, closest {record.min_separation_m:.2f} m)")
