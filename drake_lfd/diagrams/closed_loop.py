@@ -48,6 +48,7 @@ from drake_lfd.diagrams.trial_result import ClosedLoopResult
 from drake_lfd.diagrams.recording_meshcat import recording_meshcat
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.planning.replanning import ScheduledPlan
+from drake_lfd.diagrams.override_indicator import draw_override_indicator, record_override
 from drake_lfd.diagrams.plan_markers import draw_plan
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.systems.trial_end import plan_end_time_s
@@ -198,6 +199,8 @@ class ClosedLoopRunner:
             if recording:
                 target = scheduled.timed.X_WE_list()[0].translation()
                 self.meshcat.SetCameraPose(camera_in_world=target + [0.9, -1.0, 0.55], target_in_world=target)
+            if pipeline.people:
+                draw_override_indicator(self.meshcat, station.X_WB)
             visualizer.DeleteRecording()
             visualizer.StartRecording(set_transforms_while_recording=False)
         simulator.Initialize()  # setup, as the bare station's in bench_pipeline.py
@@ -238,6 +241,9 @@ class ClosedLoopRunner:
                                          cpu_time_s=time.process_time() - cpu_start)
         if recording:
             visualizer.StopRecording()
+            record = pipeline.collaboration_record(context)
+            if record is not None:
+                record_override(visualizer.get_mutable_recording(), record.t, record.override)
             visualizer.PublishRecording()
             atomic_write_bytes(Path(record_html), self.meshcat.StaticHtml().encode())
         return scheduled, result
