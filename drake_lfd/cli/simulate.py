@@ -52,7 +52,7 @@ def add_parser(subparsers) -> None:
                              "in a browser; needs Drake's meshcat network access) (default: off)")
     parser.add_argument("--figures", metavar="DIR",
                         help="write figures of the first trial that ran into DIR (created if missing): "
-                             "SE(3) plan, joints, distance to shells")
+                             "SE(3) plan, joints, distance to shells, and with people the separation and speed override")
     parser.add_argument("--people", metavar="FILE.yaml",
                         help="people in the cell for every trial: a YAML file with people: (each a name and a path "
                              "of timed floor waypoints or a recorded track) and optionally collaboration: (ISO/TS "

@@ -282,9 +282,12 @@ def clearance_over_time(task: Task, run: ClosedLoopResult, stride: int = 10) -> 
 
 
 def write_trial_figures(task: Task, outcome: TrialOutcome, out: Path, prefix: str) -> dict[str, str]:
-    """The SE(3) plan with triads, the joint trajectories with limits and, when the task has
+    """The SE(3) plan with triads, the joint trajectories with limits, with people in the
+    cell the separation, ``S_p`` and the speed override over time and, when the task has
     obstacles or shells, the distance to them over time; returns {kind: file name}."""
-    from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure, shell_distance_figure
+    from drake_lfd.experiments.figures import (
+        joint_trajectories_figure, plan_figure, separation_figure, shell_distance_figure,
+    )
 
     figures = {}
     concrete = outcome.plan.task
@@ -297,6 +300,12 @@ def write_trial_figures(task: Task, outcome: TrialOutcome, out: Path, prefix: st
     figures["joints"] = joint_trajectories_figure(
         out / f"{prefix}_joints.png", outcome.run.t, outcome.run.q, lower=lower, upper=upper,
         velocity_limit=kinematics.velocity_limits(), title=f"{prefix}: joints, trial {outcome.trial}").name
+    record = outcome.run.collaboration
+    if record is not None:
+        figures["separation"] = separation_figure(
+            out / f"{prefix}_separation.png", record.separation_t, record.distance_m, record.protective_distance_m,
+            record.t, record.override, people=record.people,
+            title=f"{prefix}: separation from people and speed override, trial {outcome.trial}").name
     if task.obstacles or task.safety_shells:
         t, distance = clearance_over_time(task, outcome.run)
         figures["distance"] = shell_distance_figure(
