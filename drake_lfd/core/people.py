@@ -34,8 +34,13 @@ __all__ = [
     "BodySize", "Waypoint", "Reach", "ScriptedPath", "RecordedTrack", "Person", "CapsulePose",
     "CollaborationParameters", "CAPSULE_NAMES", "TRACK_KEYPOINTS", "SSM_POLICY", "STOP_ONLY_POLICY", "POLICIES",
     "protective_separation_distance", "separation_override", "stop_only_override", "rate_limited",
-    "stop_only_radius_m",
+    "stop_only_radius_m", "WORKBENCH_HEIGHT_M",
 ]
+
+#: How far the floor is below the robot's base by default, m: a workbench's height (work
+#: tables for standing work are 0.9-1.0 m, for seated 0.72-0.75 m; the arm's base plate
+#: adds a little).
+WORKBENCH_HEIGHT_M = 0.75
 
 #: The capsules of every person, in this order.
 CAPSULE_NAMES = ("torso", "head", "left_arm", "right_arm")
@@ -319,9 +324,9 @@ class CollaborationParameters:
     stop_radius_m : float or None
         The ``stop_only`` policy's radius; None: :func:`stop_only_radius_m`, the radius
         that is as safe as speed and separation monitoring at the robot's top speed.
-    floor_z_m : float
-        Where the floor is in W: -0.75 m, a workbench's height under the table top the
-        robot stands on (W's z = 0 is the table top in the shipped scenarios).
+    floor_z_m : float or None
+        Where the floor is in W; None (the default): :data:`WORKBENCH_HEIGHT_M` below the
+        robot's base, which stands on a workbench (the shipped scenarios' table top).
     moving_toward_speed_m_s : float
         0.001 m/s: a robot point approaching a person more slowly than this counts as
         standing (a drive holding still measures speeds of this order, not zero).
@@ -342,7 +347,7 @@ class CollaborationParameters:
     human_position_uncertainty_m: float = 0.1
     robot_position_uncertainty_m: float = 0.01
     stop_radius_m: float | None = None
-    floor_z_m: float = -0.75
+    floor_z_m: float | None = None
     moving_toward_speed_m_s: float = 0.001
     max_speed_m_s: float = 1.5
     max_time_lost_s: float = 60.0
@@ -350,6 +355,10 @@ class CollaborationParameters:
     def __post_init__(self):
         if self.policy not in POLICIES:
             raise ValueError(f"policy must be one of {POLICIES}, got {self.policy!r}")
+
+    def floor_z(self, base_z_m: float) -> float:
+        """The floor's height in W for a robot base at height ``base_z_m``."""
+        return float(base_z_m) - WORKBENCH_HEIGHT_M if self.floor_z_m is None else float(self.floor_z_m)
 
     def stopping_time(self, joint_speed_rad_s: float, joint_acceleration_rad_s2: float) -> float:
         """T_s: the given one, or joint speed limit / joint acceleration limit."""
@@ -390,17 +399,19 @@ def separation_override(distance_m: float, full_speed_m_s: float, parameters: Co
     ``distance_m``: d, the least distance between the person and the robot;
     ``full_speed_m_s``: ``u``, how fast the robot's closest point moves at override 1
     (its speed, not only its part toward the person, so a turn of the path toward the
-    person is covered). The person may close in at ``v_h`` while the override ramps from
-    ``o`` down to 0 (within ``o T_s``, plus one period to react), so ``o`` must satisfy::
+    person is covered). The person may close in at ``v_h`` while the robot reacts (``T_r``:
+    the simulated drive follows its command with a lag, and settles after a stop) and
+    the override ramps from ``o`` down to 0 (within ``o T_s``), so ``o`` must satisfy::
 
-        d - v_h (o T_s + dt) >= S_p(o u) = S_p(0) + o u (T_r + T_s / 2)
+        d - v_h (T_r + o T_s) >= S_p(o u) = S_p(0) + o u (T_r + T_s / 2)
 
-    that is ``o <= (d - v_h dt - S_p(0)) / (u (T_r + T_s / 2) + v_h T_s)``. As ``d``
+    that is ``o <= (d - v_h T_r - S_p(0)) / (u (T_r + T_s / 2) + v_h T_s)``. As ``d``
     falls at ``v_h`` this bound falls at most ``1 / T_s`` per second, the ramp's own rate,
     so the ramped override keeps up with it. 0 (a protective stop) when even a standing
     robot would be too close.
     """
-    room = distance_m - parameters.human_speed_m_s * time_step - parameters.standstill_distance_m(stopping_time_s)
+    room = (distance_m - parameters.human_speed_m_s * max(parameters.reaction_time_s, time_step)
+            - parameters.standstill_distance_m(stopping_time_s))
     if room <= 0.0:
         return 0.0
     per_unit = (max(full_speed_m_s, 0.0) * (parameters.reaction_time_s + 0.5 * stopping_time_s)
@@ -416,7 +427,7 @@ def stop_only_radius_m(parameters: CollaborationParameters, stopping_time_s: flo
     if parameters.stop_radius_m is not None:
         return float(parameters.stop_radius_m)
     return (protective_separation_distance(parameters.max_speed_m_s, parameters, stopping_time_s)
-            + parameters.human_speed_m_s * (stopping_time_s + time_step))
+            + parameters.human_speed_m_s * (stopping_time_s + max(parameters.reaction_time_s, time_step)))
 
 
 def stop_only_override(distance_m: float, radius_m: float) -> float:

@@ -254,7 +254,8 @@ class Pipeline(Diagram):
             raise ValueError("people in the cell need the compiled controller (controller.method: compiled)")
         builder = DiagramBuilder()
         # Without people the station is built as it always was (nothing added).
-        people_options = dict(people=self.people, floor_z=self.collaboration.floor_z_m) if self.people else {}
+        people_options = dict(people=self.people, floor_z=self.collaboration.floor_z(workcell.X_WB.translation()[2])) \
+            if self.people else {}
         station = Station.AddToBuilder(builder=builder, workcell=workcell, meshcat=meshcat, config=config.station,
                                        **people_options)
         q_measured_port = station.GetOutputPort(station.port_name("position_measured"))

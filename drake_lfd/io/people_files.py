@@ -106,7 +106,8 @@ class CollaborationSpec:
     robot_position_uncertainty_m: float = CollaborationParameters.robot_position_uncertainty_m
     stop_radius_m: Optional[float] = dataclasses.field(
         default=None, metadata={"expected": "a number (m), or absent for one as safe as speed and separation"})
-    floor_z_m: float = CollaborationParameters.floor_z_m
+    floor_z_m: Optional[float] = dataclasses.field(
+        default=None, metadata={"expected": "a number (m), or absent for 0.75 m below the robot's base"})
     moving_toward_speed_m_s: float = CollaborationParameters.moving_toward_speed_m_s
     max_speed_m_s: float = CollaborationParameters.max_speed_m_s
     max_time_lost_s: float = CollaborationParameters.max_time_lost_s
@@ -274,7 +275,8 @@ def collaboration_from_spec(spec, *, file=None, field="collaboration") -> Collab
     for name in ("stopping_time_s", "stop_radius_m"):
         value = getattr(spec, name)
         values[name] = None if value is None else _positive(value, file=file, field=f"{field}.{name}")
-    values["floor_z_m"] = coordinate(spec.floor_z_m, file=file, field=f"{field}.floor_z_m")
+    values["floor_z_m"] = None if spec.floor_z_m is None else coordinate(spec.floor_z_m, file=file,
+                                                                         field=f"{field}.floor_z_m")
     return CollaborationParameters(**values)
 
 

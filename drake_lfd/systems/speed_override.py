@@ -19,7 +19,9 @@ controller period ``dt`` it
 3. advances ``s`` by ``o dt`` and steps the command with the compiled controller's law in
    path time: ``q_c <- q_c + clip(q_d(s' + o dt) - q_d(s') + dt K (q_d(s + o lead) -
    q_measured))``, the speed clip per joint as there; the command is clipped to the
-   joint position limits.
+   joint position limits. During a protective stop (``o = 0``) the command is held (the
+   feedback alone would creep the arm the last millimetres onto the path, toward the
+   person who stopped it).
 
 With ``o = 1`` throughout the command is the compiled controller's, so the robot follows
 the same joint path, slower or stopped where people are: every critical configuration is
@@ -226,8 +228,12 @@ class TimeScaledJointPathSource(LeafSystem):
         w = (self._at(path, s_next + step) - self._at(path, s_next)
              + self._dt * self._gain * (self._at(path, s + new_override * self._lead_s) - q_measured))
         q_command = context.get_discrete_state(self._command_index).get_value()
-        discrete_state.set_value(self._command_index,
-                                 q_command + np.clip(w, -self._speed_limit, self._speed_limit))
+        if new_override > 0.0:
+            discrete_state.set_value(self._command_index,
+                                     q_command + np.clip(w, -self._speed_limit, self._speed_limit))
+        # else a protective stop: the command is held where it is (the feedback would
+        # creep the arm onto the path, toward whoever stopped it).
+
         discrete_state.set_value(self._status_index,
                                  np.concatenate([[s_next, new_override, stops], separation]))
         return EventStatus.Succeeded()
