@@ -44,6 +44,7 @@ Not for: the loop that runs trials with Meshcat recordings and task changes
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Mapping, NamedTuple
 
 import numpy as np
@@ -477,11 +478,16 @@ class Pipeline(Diagram):
                           initial_configuration=initial_configuration, **people)
 
     def path_time_s(self, context: Context) -> float:
-        """Where the run in ``context`` is along its path, s: the path position ``s`` with
-        people in the cell, the clock without."""
+        """Where the run in ``context`` is along its path now, s: with people in the cell
+        the path position (the source's state holds it for its next update, ``s + o dt``
+        ahead of the last one: taken back to the clock's time), the clock without."""
+        now = context.get_time()
         if not self.people:
-            return context.get_time()
-        return float(self.source.path_time_output_port.Eval(self.source.GetMyContextFromRoot(context))[0])
+            return now
+        status = self.source.status_output_port.Eval(self.source.GetMyContextFromRoot(context))
+        dt = self.law.time_step
+        next_update = math.ceil(now / dt - 1e-9) * dt
+        return float(status[0] - status[1] * (next_update - now))
 
     def collaboration_record(self, context: Context) -> CollaborationRecord | None:
         """The people's effect on the run in ``context`` so far (None without people)."""
