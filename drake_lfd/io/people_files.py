@@ -36,7 +36,9 @@ from drake_lfd.core.people import (
     POLICIES, TRACK_KEYPOINTS, BodySize, CollaborationParameters, Person, Reach, RecordedTrack, ScriptedPath,
     Waypoint,
 )
-from drake_lfd.io.yaml_checks import coordinate, finite, load_spec, read_text, required, vector
+from drake_lfd.io.yaml_checks import (
+    coordinate, finite, load_spec, non_negative as _non_negative, positive as _positive, read_text, required, vector,
+)
 
 __all__ = ["WaypointSpec", "ReachSpec", "BodySpec", "PersonSpec", "CollaborationSpec", "PeopleFileSpec",
            "people_from_specs", "collaboration_from_spec", "load_people_file", "task_with_people",
@@ -120,20 +122,6 @@ class PeopleFileSpec:
     people: list[PersonSpec] = dataclasses.field(default_factory=list)
     collaboration: Optional[CollaborationSpec] = dataclasses.field(
         default=None, metadata={"expected": "a mapping of collaboration keys ({} for the defaults)"})
-
-
-def _non_negative(value, *, file, field):
-    number = finite(value, file=file, field=field)
-    if number < 0.0:
-        raise InputError(f"must be >= 0, got {number:g}", file=file, field=field)
-    return number
-
-
-def _positive(value, *, file, field):
-    number = finite(value, file=file, field=field)
-    if not number > 0.0:
-        raise InputError(f"must be > 0, got {number:g}", file=file, field=field)
-    return number
 
 
 def _time(value, *, file, field):

@@ -104,6 +104,7 @@ from drake_lfd.io.yaml_checks import (
     finite,
     load_spec,
     pose,
+    positive as _positive,
     read_text,
     required,
     vector,
@@ -293,13 +294,6 @@ def _box(spec, *, file, field):
     euler = vector(spec.euler_zyx, 3, file=file, field=f"{field}.euler_zyx", convert=angle)
     rotation = rigid_transform_from_euler_zyx(np.zeros(3), euler).rotation()
     return Box(name=spec.name, centre=centre, size=size, rotation=rotation)
-
-
-def _positive(value, *, file, field):
-    value = finite(value, file=file, field=field)
-    if not value > 0.0:
-        raise InputError(f"must be > 0, got {value:g}", file=file, field=field)
-    return value
 
 
 def _tool(specs, *, file):

@@ -44,9 +44,8 @@ from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem, Valu
 from drake_lfd.core.people import (
     SSM_POLICY, CollaborationParameters, rate_limited, separation_override, stop_only_override, stop_only_radius_m,
 )
-from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.differential_ik_law import DifferentialIKLaw
-from drake_lfd.systems.joint_trajectory_controller import joint_path_of_plan
+from drake_lfd.systems.joint_path_source import JointPathSource, run_joint_path
 from drake_lfd.systems.planner import NO_PLAN
 from drake_lfd.systems.separation import SEPARATION_FIELDS
 
@@ -155,11 +154,7 @@ class TimeScaledJointPathSource(LeafSystem):
     # -- the path ---------------------------------------------------------------------
     def _calc_path(self, context, value):
         q_start = context.get_abstract_state(self._start_index).get_value()
-        plan = self.plan_input_port.Eval(context)
-        if isinstance(plan, ScheduledPlan) and plan.planned:
-            t, q = joint_path_of_plan(plan, q_start, self._law)
-        else:  # hold the start
-            t, q = np.zeros(1), np.asarray(q_start, dtype=float)[None, :]
+        t, q = run_joint_path(self.plan_input_port.Eval(context), q_start, self._law)
         value.set_value((np.asarray(t, dtype=float), np.asarray(q, dtype=float)))
 
     @staticmethod
@@ -187,10 +182,8 @@ class TimeScaledJointPathSource(LeafSystem):
         output.SetAtIndex(0, context.get_discrete_state(self._status_index).get_value()[0])
 
     # -- events -------------------------------------------------------------------------
-    def _latch_start(self, context, state):
-        q_start = np.array(self.q_measured_input_port.Eval(context), dtype=float)
-        state.get_mutable_abstract_state(self._start_index).set_value(q_start)
-        return EventStatus.Succeeded()
+    # The run's start, q_0, latched as the compiled source latches it (same port and state names).
+    _latch_start = JointPathSource._latch_start
 
     def _initialize(self, context, discrete_state):
         q_start = context.get_abstract_state(self._start_index).get_value()
