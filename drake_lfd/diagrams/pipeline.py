@@ -11,6 +11,16 @@ default, compiled controller (``controller.method: compiled``)::
     PlannerSystem --plan--> TrialEnd              (ends the run once the plan is executed)
     Station --ur5e.state--> joint logger; ShellMonitor measures the logged samples
 
+With people in the cell (``people=``, a task's ``people:``; compiled controller only),
+the source and controller are replaced, nothing else changes (without people the Diagram
+is exactly the one above)::
+
+    Station (people's capsules, a SceneGraph source inside it) --query_object, ur5e.state--> SeparationMonitor
+    TimeScaledJointPathSource --path_rate--> SeparationMonitor --separation--> TimeScaledJointPathSource
+    PlannerSystem --plan--> TimeScaledJointPathSource --q_command--> Station (ur5e.position_command)
+    TimeScaledJointPathSource --path_time--> TrialEnd (ends the run when the path is done)
+    TimeScaledJointPathSource --status--> collaboration logger (separation, S_p, override)
+
 With the Python task-space controller (``drake`` or ``pseudo_inverse``, the paper's
 baseline)::
 
@@ -180,6 +190,10 @@ class Pipeline(Diagram):
     accept_demonstrations : bool
         Give the library system its ``demonstration`` input (exported as
         ``demonstration``).
+    people : sequence of Person
+        People in the cell (:mod:`drake_lfd.core.people`); none: nothing is added.
+    collaboration : CollaborationParameters, optional
+        Speed and separation monitoring with people (None: the defaults).
 
     Attributes
     ----------
@@ -199,6 +213,12 @@ class Pipeline(Diagram):
     table : Box or None
     kinematics : UR5eKinematics
         The arm's forward kinematics in this work cell (judging the runs).
+    people : tuple of Person
+    collaboration : CollaborationParameters or None
+        None without people.
+    separation, collaboration_logger
+        With people: the SeparationMonitor and the log of the source's ``status``
+        (None without people).
     """
 
     def __init__(
