@@ -199,3 +199,14 @@ def test_simulate_with_people_reports_the_collaboration_per_trial(tmp_path, peop
     document = json.loads(out.read_text())
     collaboration = document["trials"][0]["collaboration"]
     assert collaboration["time_lost_s"] > 1.0 and math.isfinite(collaboration["min_margin_m"])
+
+
+@pytest.mark.slow
+def test_a_trial_run_again_on_the_same_diagram_gives_the_same_run(with_operator):
+    # Everything the override needs lives in the Context: nothing carries over a run.
+    runner, outcomes, _ = with_operator
+    again = runner.run(trial=1, seed=0)
+    first = outcomes[0].run
+    np.testing.assert_array_equal(again.run.collaboration.override, first.collaboration.override)
+    np.testing.assert_array_equal(again.run.q, first.q)
+    assert again.run.collaboration.protective_stops == first.collaboration.protective_stops
