@@ -198,7 +198,11 @@ class ClosedLoopRunner:
             draw_plan(self.meshcat, scheduled.timed)
             if recording:
                 target = scheduled.timed.X_WE_list()[0].translation()
-                self.meshcat.SetCameraPose(camera_in_world=target + [0.9, -1.0, 0.55], target_in_world=target)
+                if pipeline.people:  # farther out, to the side: the people come from around the cell
+                    self.meshcat.SetCameraPose(camera_in_world=target + [2.8, -1.4, 1.5],
+                                               target_in_world=target + [0.0, -0.7, -0.2])
+                else:
+                    self.meshcat.SetCameraPose(camera_in_world=target + [0.9, -1.0, 0.55], target_in_world=target)
             if pipeline.people:
                 draw_override_indicator(self.meshcat, station.X_WB)
             visualizer.DeleteRecording()
