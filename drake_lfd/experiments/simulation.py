@@ -300,7 +300,7 @@ def write_trial_figures(task: Task, outcome: TrialOutcome, out: Path, prefix: st
     figures["joints"] = joint_trajectories_figure(
         out / f"{prefix}_joints.png", outcome.run.t, outcome.run.q, lower=lower, upper=upper,
         velocity_limit=kinematics.velocity_limits(), title=f"{prefix}: joints, trial {outcome.trial}").name
-    record = outcome.run.collaboration
+    record = getattr(outcome.run, "collaboration", None)
     if record is not None:
         figures["separation"] = separation_figure(
             out / f"{prefix}_separation.png", record.separation_t, record.distance_m, record.protective_distance_m,

@@ -226,7 +226,6 @@ class TimeScaledJointPathSource(LeafSystem):
                                      q_command + np.clip(w, -self._speed_limit, self._speed_limit))
         # else a protective stop: the command is held where it is (the feedback would
         # creep the arm onto the path, toward whoever stopped it).
-
         discrete_state.set_value(self._status_index,
                                  np.concatenate([[s_next, new_override, stops], separation]))
         return EventStatus.Succeeded()
