@@ -152,7 +152,7 @@ def run(args) -> int:
         write_json(Path(args.json), document)
     for line in lines:
         print(line)
-    lost = [o.run.collaboration.time_lost_s for o in outcomes if o.run is not None and o.run.collaboration]
+    lost = [o.run.collaboration.time_lost_s for o in outcomes if getattr(o.run, "collaboration", None)]
     people = f"; people cost {sum(lost):.1f} s in all" if lost else ""
     print(f"{task.name}: {document['success_count']}/{args.trials} trials succeeded "
           f"({document['sim_time_s']:.1f} s simulated in {wall:.1f} s{people})")

@@ -306,9 +306,9 @@ class CollaborationParameters:
         T_s: None (the default) takes it from the UR5e's joint limits: the time the
         fastest allowed joint needs to stop at the joint acceleration limit, joint speed
         limit / joint acceleration limit (the task's ``timing:`` block: pi / 8 =
-        0.39 s, close to UR's published category-1 stopping times of the e-Series at
-        full speed). The override is ramped down at 1 / T_s per second, so an override
-        of 1 falls to 0 within T_s.
+        0.39 s). For a real cell use the stopping times and distances UR's manual lists
+        for the robot and payload, or measure them. The override is ramped down at
+        1 / T_s per second, so an override of 1 falls to 0 within T_s.
     intrusion_distance_m : float
         C = 0.208 m: ISO 13855's intrusion distance ``8 (d - 14)`` mm for a detection
         capability of d = 40 mm (a hand): how far a body part can reach past what the

@@ -365,7 +365,7 @@ def trial_summary_line(outcome: TrialOutcome, task: Task | None = None) -> str:
     refinement = getattr(outcome.plan, "refinement", None) if outcome.plan is not None else None
     if refinement is not None:  # planned with --refine: whether it took, or why not
         composition += "; refined" if refinement.refined else f"; not refined: {shorten_reason(refinement.reason)}"
-    record = outcome.run.collaboration if outcome.run is not None else None
+    record = getattr(outcome.run, "collaboration", None)
     if record is not None:
         clearance += "; " + people_cost(record)
     return f"trial {outcome.trial} (seed {outcome.seed}): {composition}; {clearance}; {verdict}"
