@@ -60,6 +60,9 @@ class PeopleGeometry(LeafSystem):
     def __init__(self, *, people, scene_graph: SceneGraph, floor_z: float, face_xy):
         super().__init__()
         self.people: tuple[Person, ...] = tuple(people)
+        names = [person.name for person in self.people]
+        if len(set(names)) != len(names):
+            raise ValueError(f"people need distinct names (they name their geometry), got {names}")
         self._floor_z = float(floor_z)
         self._face_xy = np.asarray(face_xy, dtype=float)[:2].copy()
         self.source_id = scene_graph.RegisterSource("people")
