@@ -54,7 +54,12 @@ def add_parser(subparsers) -> None:
                              "in a browser; needs Drake's meshcat network access) (default: off)")
     parser.add_argument("--figures", metavar="DIR",
                         help="write figures of the first trial that ran into DIR (created if missing): "
-                             "SE(3) plan, joints, distance to shells")
+                             "SE(3) plan, joints, distance to shells, and with people the separation and speed override")
+    parser.add_argument("--people", metavar="FILE.yaml",
+                        help="people in the cell for every trial: a YAML file with people: (each a name and a path "
+                             "of timed floor waypoints or a recorded track) and optionally collaboration: (ISO/TS "
+                             "15066 speed and separation monitoring parameters); replaces the task's own people "
+                             "(docs/collaboration.rst)")
     parser.add_argument("--controller", choices=sorted(CONTROLLER_CHOICES), default=None,
                         help="compiled: the plan's checked joint path tracked by Drake's C++ systems (the default); "
                              "drake: the Python task-space controller with Drake's differential IK; paper: the "
@@ -85,9 +90,14 @@ def run(args) -> int:
         from drake_lfd.experiments.simulation import (
             run_trials, simulate_json, trial_record, trial_summary_line, write_trial_figures,
         )
+        from drake_lfd.io.people_files import task_with_people
         from drake_lfd.io.task_files import load_task
     options = planning_options_of(args)
     task = load_task(args.task)
+    if args.people:
+        task = task_with_people(task, args.people)
+    if task.people and (controller or task.simulation.controller.method) != "compiled":
+        raise InputError("people in the cell need the compiled controller", field="--controller")
     library = Library.open(args.library)
     check_end_effector_frame(library, task.X_tool0_E, file=args.task)
     policy = load_policy_for(args, library)
@@ -123,7 +133,7 @@ def run(args) -> int:
             from drake_lfd.experiments.parallel_trials import run_trials_on_workers, runner_spec
 
             runner = runner_spec(args.task, library, policy_file=args.policy if args.planner == "q" else None,
-                                 options=options, controller=controller)
+                                 options=options, controller=controller, people_file=args.people)
             outcomes, wall = run_trials_on_workers(
                 runner, trials=args.trials, seed=args.seed, record_html=args.html, progress=progress,
                 workers=workers, scheduler=args.scheduler,
@@ -149,8 +159,10 @@ def run(args) -> int:
         write_json(Path(args.json), document)
     for line in lines:
         print(line)
+    lost = [o.run.collaboration.time_lost_s for o in outcomes if getattr(o.run, "collaboration", None)]
+    people = f"; people cost {sum(lost):.1f} s in all" if lost else ""
     print(f"{task.name}: {document['success_count']}/{args.trials} trials succeeded "
-          f"({document['sim_time_s']:.1f} s simulated in {wall:.1f} s)")
+          f"({document['sim_time_s']:.1f} s simulated in {wall:.1f} s{people})")
     # 0: every trial succeeded; 3: every trial needs a demonstration the library lacks;
     # 4: anything else (a trial without an executable plan, or one that failed).
     if outcomes and all(o.success for o in outcomes):

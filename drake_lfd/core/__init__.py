@@ -23,6 +23,8 @@ The modules:
   trials (Eq. 10).
 * ``demonstrations``: the demonstration data type, a joint-angle time series (Eq. 11).
 * ``tool``: the tool and what it holds, solids fixed to the flange frame ``tool0``.
+* ``people``: people in the cell (capsule bodies on scripted paths or recorded tracks)
+  and ISO/TS 15066's protective separation distance and speed override.
 * ``guidance``: the guiding hand's path in a simulated kinesthetic demonstration.
 * ``synthetic_library``: hand-built demonstrations with the motions of the paper's
   Fig. 5, as pose sequences.

@@ -187,6 +187,11 @@ class Task:
     # The task file's ``timing:`` block, checked: a core.timing.TimingLimits (None: the
     # defaults).
     timing: object = None
+    # The people in the cell (tuple of core.people.Person; () for none) and the task
+    # file's ``collaboration:`` block, checked: a core.people.CollaborationParameters
+    # (None: the defaults).
+    people: tuple = ()
+    collaboration: object = None
 
     def __len__(self):
         return len(self.critical_configurations)

@@ -33,6 +33,10 @@ The modules:
 * ``trial_result``: ``ClosedLoopResult`` and ``CriticalError``, what a run did, read off
   its Context.
 * ``judging``: ``judge_run`` and ``RunJudgement``, the success criteria.
+* ``collaboration_result``: ``CollaborationRecord``, what people in the cell did to a run
+  (separation, protective separation distance, speed override), read off its Context.
+* ``override_indicator``: the speed override in Meshcat recordings, a traffic light above
+  the robot's base.
 * ``closed_loop``: ``ClosedLoopRunner`` and ``run_closed_loop``, trials run in turn on
   one pipeline, with Meshcat recordings and task changes;
   ``plan_through_joint_configurations``.

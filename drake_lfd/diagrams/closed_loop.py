@@ -44,6 +44,7 @@ from drake_lfd.diagrams.trial_result import ClosedLoopResult
 from drake_lfd.diagrams.recording_meshcat import recording_meshcat
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.planning.replanning import ScheduledPlan
+from drake_lfd.diagrams.override_indicator import draw_override_indicator, record_override
 from drake_lfd.diagrams.plan_markers import draw_plan
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.systems.trial_end import plan_end_time_s
@@ -193,7 +194,13 @@ class ClosedLoopRunner:
             draw_plan(self.meshcat, scheduled.timed)
             if recording:
                 target = scheduled.timed.X_WE_list()[0].translation()
-                self.meshcat.SetCameraPose(camera_in_world=target + [0.9, -1.0, 0.55], target_in_world=target)
+                if pipeline.people:  # farther out, to the side: the people come from around the cell
+                    self.meshcat.SetCameraPose(camera_in_world=target + [2.8, -1.4, 1.5],
+                                               target_in_world=target + [0.0, -0.7, -0.2])
+                else:
+                    self.meshcat.SetCameraPose(camera_in_world=target + [0.9, -1.0, 0.55], target_in_world=target)
+            if pipeline.people:
+                draw_override_indicator(self.meshcat, station.X_WB)
             visualizer.DeleteRecording()
             visualizer.StartRecording(set_transforms_while_recording=False)
         simulator.Initialize()  # setup, as the bare station's in bench_pipeline.py
@@ -209,7 +216,13 @@ class ClosedLoopRunner:
             # To the end of the plan in force (the Diagram would end the run at its first
             # check after it; stopping at the end keeps the log to the plan's own span).
             end = plan_end_time_s(pipeline.plan_output_port.Eval(context))
-            if end is None or context.get_time() >= end - 1e-12:
+            if pipeline.people:
+                # The path runs in scaled time: the end is where the path position reaches
+                # it, at least the remaining path time later (never sooner).
+                if end is None or pipeline.path_time_s(context) >= end - 1e-9:
+                    break
+                end = context.get_time() + max(end - pipeline.path_time_s(context), pipeline.law.time_step)
+            elif end is None or context.get_time() >= end - 1e-12:
                 break
             status = simulator.AdvanceTo(min(end, changes[0][0]) if changes else end)
             if status.reason() == status.ReturnReason.kReachedTerminationCondition:
@@ -217,7 +230,7 @@ class ClosedLoopRunner:
                 break
         scheduled = pipeline.plan_output_port.Eval(context)
         end = plan_end_time_s(scheduled)
-        early = end is not None and context.get_time() < end - 1e-9
+        early = end is not None and pipeline.path_time_s(context) < end - 1e-9
         # Reading the run off the Context (the monitor measures the logged samples there)
         # is part of the closed loop's time.
         result = pipeline.trial_result(context, stop_reason=stop_reason if early else "",
@@ -228,6 +241,9 @@ class ClosedLoopRunner:
                                          cpu_time_s=time.process_time() - cpu_start)
         if recording:
             visualizer.StopRecording()
+            record = pipeline.collaboration_record(context)
+            if record is not None:
+                record_override(visualizer.get_mutable_recording(), record.t, record.override)
             visualizer.PublishRecording()
             atomic_write_bytes(Path(record_html), self.meshcat.StaticHtml().encode())
         return scheduled, result

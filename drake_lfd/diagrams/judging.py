@@ -59,6 +59,9 @@ def judge_run(
     - no robot geometry penetrates an obstacle or a safety shell (min distance > 0);
     - joint positions inside ``joint_limits`` and speeds inside ``velocity_limits``
       (the UR5e's, by default) at every logged sample;
+    - with people in the cell (``result.collaboration``), the robot never moved toward
+      a person (``v_r`` above the record's threshold) closer than ISO/TS 15066's
+      protective separation distance ``S_p``;
     - the elbow and the wrist keep ``singularity_margin`` (0.05) from their
       singularities at every logged sample: ``|sin q3|`` (elbow straight) and
       ``|sin q5|`` (wrist aligned) stay at or above it; a run through a singularity is
@@ -146,6 +149,12 @@ def judge_run(
                 f"{name}: speed {speeds[k]:.2f} rad/s > limit {velocity_limits[j]:.2f} rad/s "
                 f"(t = {result.t[k]:.2f} s)"
             )
+    record = result.collaboration
+    if record is not None and record.violation_count:
+        failures.append(
+            f"separation: the robot moved toward a person closer than the protective separation distance S_p "
+            f"in {record.violation_count} sample(s) (first at t = {record.first_violation_s():.2f} s; "
+            f"least margin {1000 * record.min_margin_m:.0f} mm)")
     if len(result.q):
         for j, what in ((2, "elbow straight (|sin q3|"), (4, "wrist aligned (|sin q5|")):
             margin = np.abs(np.sin(result.q[:, j]))

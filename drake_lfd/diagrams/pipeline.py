@@ -11,6 +11,16 @@ default, compiled controller (``controller.method: compiled``)::
     PlannerSystem --plan--> TrialEnd              (ends the run once the plan is executed)
     Station --ur5e.state--> joint logger; ShellMonitor measures the logged samples
 
+With people in the cell (``people=``, a task's ``people:``; compiled controller only),
+the source and controller are replaced, nothing else changes (without people the Diagram
+is exactly the one above)::
+
+    Station (people's capsules, a SceneGraph source inside it) --query_object, ur5e.state--> SeparationMonitor
+    TimeScaledJointPathSource --path_rate--> SeparationMonitor --separation--> TimeScaledJointPathSource
+    PlannerSystem --plan--> TimeScaledJointPathSource --q_command--> Station (ur5e.position_command)
+    TimeScaledJointPathSource --path_time--> TrialEnd (ends the run when the path is done)
+    TimeScaledJointPathSource --status--> collaboration logger (separation, S_p, override)
+
 With the Python task-space controller (``drake`` or ``pseudo_inverse``, the paper's
 baseline)::
 
@@ -44,6 +54,7 @@ Not for: the loop that runs trials with Meshcat recordings and task changes
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Mapping, NamedTuple
 
 import numpy as np
@@ -56,10 +67,14 @@ from pydrake.systems.primitives import LogVectorOutput
 
 from drake_lfd.core.features import Feature
 from drake_lfd.core.tasks import Box, ConcreteTask, Task, draw_trial
-from drake_lfd.core.timing import TimedPlan
+from drake_lfd.core.people import CollaborationParameters
+from drake_lfd.core.timing import TimedPlan, TimingLimits
 from drake_lfd.io.library_source import resolve_features
 from drake_lfd.io.plan_json import describe_uncovered
 from drake_lfd.io.simulation_config import COMPILED_METHOD, PipelineConfig
+from drake_lfd.diagrams.collaboration_result import (
+    CollaborationRecord, collaboration_record_from_log, scaled_due_times,
+)
 from drake_lfd.diagrams.judging import RunJudgement, judge_run
 from drake_lfd.diagrams.station import Station
 from drake_lfd.diagrams.trial_result import ClosedLoopResult, read_trial
@@ -79,8 +94,10 @@ from drake_lfd.systems.joint_path_source import JointPathSource
 from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryController, law_for_plant
 from drake_lfd.systems.plan_trajectory_source import PlanTrajectorySource
 from drake_lfd.systems.planner import NO_PLAN, GivenPlan, PlannerSystem
+from drake_lfd.systems.separation import SeparationMonitor
 from drake_lfd.systems.shell_monitor import ShellMonitor
-from drake_lfd.systems.trial_end import TrialEnd
+from drake_lfd.systems.speed_override import TimeScaledJointPathSource
+from drake_lfd.systems.trial_end import TrialEnd, plan_end_time_s
 
 __all__ = ["Pipeline", "TrialStart", "build_pipeline", "joint_path_checker", "scheduled_plan_from_timed"]
 
@@ -173,6 +190,10 @@ class Pipeline(Diagram):
     accept_demonstrations : bool
         Give the library system its ``demonstration`` input (exported as
         ``demonstration``).
+    people : sequence of Person
+        People in the cell (:mod:`drake_lfd.core.people`); none: nothing is added.
+    collaboration : CollaborationParameters, optional
+        Speed and separation monitoring with people (None: the defaults).
 
     Attributes
     ----------
@@ -192,6 +213,12 @@ class Pipeline(Diagram):
     table : Box or None
     kinematics : UR5eKinematics
         The arm's forward kinematics in this work cell (judging the runs).
+    people : tuple of Person
+    collaboration : CollaborationParameters or None
+        None without people.
+    separation, collaboration_logger
+        With people: the SeparationMonitor and the log of the source's ``status``
+        (None without people).
     """
 
     def __init__(
@@ -212,13 +239,16 @@ class Pipeline(Diagram):
         config: PipelineConfig | None = None,
         meshcat: Meshcat | None = None,
         accept_demonstrations: bool = False,
+        people=(),
+        collaboration: CollaborationParameters | None = None,
     ):
         super().__init__()
         # What it was built from, for a sibling with another controller (``with_controller``).
         self._options = dict(task=task, workcell=workcell, X_WB=X_WB, X_tool0_E=X_tool0_E, obstacles=obstacles,
                              safety_shells=safety_shells, tool=tool, with_table=with_table, features=features,
                              planning=planning, policy=policy, plan=plan, config=config, meshcat=meshcat,
-                             accept_demonstrations=accept_demonstrations)
+                             accept_demonstrations=accept_demonstrations, people=people,
+                             collaboration=collaboration)
         if not isinstance(planning, PlanningOptions):
             raise TypeError(f"planning must be PlanningOptions, got {type(planning).__name__}")
         self.planning = planning
@@ -237,12 +267,21 @@ class Pipeline(Diagram):
         floor_z = workcell.planner_floor
 
         # Pipeline order: each stage added with its AddToBuilder, which connects its inputs.
+        self.people = tuple(people)
+        self.collaboration = (CollaborationParameters() if collaboration is None else collaboration) \
+            if self.people else None
+        self.compiled = config.controller.method == COMPILED_METHOD
+        if self.people and not self.compiled:
+            raise ValueError("people in the cell need the compiled controller (controller.method: compiled)")
         builder = DiagramBuilder()
-        station = Station.AddToBuilder(builder=builder, workcell=workcell, meshcat=meshcat, config=config.station)
+        # Without people the station is built as it always was (nothing added).
+        people_options = dict(people=self.people, floor_z=self.collaboration.floor_z(workcell.X_WB.translation()[2])) \
+            if self.people else {}
+        station = Station.AddToBuilder(builder=builder, workcell=workcell, meshcat=meshcat, config=config.station,
+                                       **people_options)
         q_measured_port = station.GetOutputPort(station.port_name("position_measured"))
         q_command_port = station.GetInputPort(station.port_name("position_command"))
         self.library = self.planner = None
-        self.compiled = config.controller.method == COMPILED_METHOD
         if plan is None:
             self.library = FeatureLibrarySystem.AddToBuilder(
                 builder=builder, features=features, X_tool0_E=X_tool0_E,
@@ -271,10 +310,33 @@ class Pipeline(Diagram):
         #: The controller's law on the controller plant (the compiled controller's limits,
         #: and following a plan that has no joint path).
         self.law = law_for_plant(controller_plant, station.controller_model, frame_E, config.controller)
-        if self.compiled:
+        #: With people: the separation monitor and the log of the override's status
+        #: (None without people).
+        self.separation = self.collaboration_logger = None
+        lead_s = config.station.time_step if station.plant.has_sampled_output_ports() else 0.0
+        if self.people:
+            # People in the cell: the joint path followed in scaled time, at the override
+            # their separation allows (a Python system at the control rate).
+            timing = getattr(task, "timing", None) or TimingLimits()
+            stopping_time_s = self.collaboration.stopping_time(timing.joint_speed_rad_s,
+                                                               timing.joint_acceleration_rad_s2)
+            self.source = self.controller = TimeScaledJointPathSource.AddToBuilder(
+                builder=builder, plan_output_port=plan_port, q_measured_output_port=q_measured_port,
+                q_command_input_port=q_command_port, law=self.law, parameters=self.collaboration,
+                stopping_time_s=stopping_time_s, num_people=len(self.people), lead_s=lead_s)
+            self.separation = SeparationMonitor.AddToBuilder(
+                builder=builder, query_object_output_port=station.GetOutputPort("query_object"),
+                state_output_port=station.GetOutputPort(station.port_name("state")),
+                path_rate_output_port=self.source.path_rate_output_port, plant=station.plant, model=station.model,
+                scene_graph=station.scene_graph, robot_geometry_ids=station.scene.robot_geometry_ids,
+                people_geometry_ids=station.people.geometry_ids, parameters=self.collaboration,
+                stopping_time_s=stopping_time_s)
+            builder.Connect(self.separation.separation_output_port, self.source.separation_input_port)
+            self.collaboration_logger = LogVectorOutput(self.source.status_output_port, builder, self.law.time_step)
+            self.collaboration_logger.set_name("collaboration_logger")
+        elif self.compiled:
             # The plan reaches the compiled controller as its joint path, in chunks from the
             # source; no Python system is evaluated in the 100 Hz loop.
-            lead_s = config.station.time_step if station.plant.has_sampled_output_ports() else 0.0
             self.source = JointPathSource.AddToBuilder(
                 builder=builder, plan_output_port=plan_port, q_measured_output_port=q_measured_port, law=self.law,
                 lead_s=lead_s)
@@ -304,8 +366,13 @@ class Pipeline(Diagram):
         state_port = station.GetOutputPort(station.port_name("state"))
         self.logger = LogVectorOutput(state_port, builder, config.log_period)
         self.logger.set_name("joint_state_logger")
-        # Ends the run once the plan is executed.
-        self.trial_end = TrialEnd.AddToBuilder(builder=builder, plan_output_port=plan_port)
+        # Ends the run once the plan is executed (with people: once the path is).
+        if self.people:
+            self.trial_end = TrialEnd.AddToBuilder(builder=builder, plan_output_port=plan_port,
+                                                   path_time_output_port=self.source.path_time_output_port,
+                                                   time_limit_s=self.collaboration.max_time_lost_s)
+        else:
+            self.trial_end = TrialEnd.AddToBuilder(builder=builder, plan_output_port=plan_port)
         builder.ExportOutput(plan_port, "plan")
         builder.ExportOutput(self.monitor.min_distance_output_port, "min_distance")
         builder.ExportOutput(state_port, station.port_name("state"))
@@ -348,6 +415,8 @@ class Pipeline(Diagram):
         self.SetDefaultContext(context)
         context.SetTime(0.0)
         self.logger.FindMutableLog(context).Clear()  # the log is the Context's, but no state
+        if self.collaboration_logger is not None:
+            self.collaboration_logger.FindMutableLog(context).Clear()
         if self.planner is None:
             scheduled = self.plan_output_port.Eval(context)
         else:
@@ -410,11 +479,43 @@ class Pipeline(Diagram):
         changed. ``stop_reason``, the timings and ``initial_configuration`` are what the
         caller knows of the run (a Simulator's status message, clocks).
         """
-        return read_trial(context, plan=self.plan_output_port.Eval(context), logger=self.logger,
+        plan = self.plan_output_port.Eval(context)
+        people = {}
+        if self.people and plan_end_time_s(plan) is not None:
+            # The path ran in scaled time: each critical configuration is judged when the
+            # path reached it, and the run is over when the path is.
+            record = self.collaboration_record(context)
+            now, s_now = context.get_time(), self.path_time_s(context)
+            # The log ends a period before the state it leads to: the path position now too.
+            t, s = (np.append(record.t, now), np.append(record.path_time_s, s_now)) \
+                if not len(record.t) or now > record.t[-1] else (record.t, record.path_time_s)
+            people = dict(collaboration=record, path_finished=s_now >= plan_end_time_s(plan) - 1e-9,
+                          due_times_s=scaled_due_times(plan.due_times_s(), t, s, now))
+        return read_trial(context, plan=plan, logger=self.logger,
                           monitor=self.monitor, station=self.station, kinematics=self.kinematics,
                           controller=self.config.controller.method, stop_reason=stop_reason,
                           wall_time_s=wall_time_s, cpu_time_s=cpu_time_s, setup_wall_time_s=setup_wall_time_s,
-                          initial_configuration=initial_configuration)
+                          initial_configuration=initial_configuration, **people)
+
+    def path_time_s(self, context: Context) -> float:
+        """Where the run in ``context`` is along its path now, s: with people in the cell
+        the path position (the source's state holds it for its next update, ``s + o dt``
+        ahead of the last one: taken back to the clock's time), the clock without."""
+        now = context.get_time()
+        if not self.people:
+            return now
+        status = self.source.status_output_port.Eval(self.source.GetMyContextFromRoot(context))
+        dt = self.law.time_step
+        next_update = math.ceil(now / dt - 1e-9) * dt
+        return float(status[0] - status[1] * (next_update - now))
+
+    def collaboration_record(self, context: Context) -> CollaborationRecord | None:
+        """The people's effect on the run in ``context`` so far (None without people)."""
+        if not self.people:
+            return None
+        log = self.collaboration_logger.FindLog(context)
+        return collaboration_record_from_log(log.sample_times(), log.data(), people=self.people,
+                                             parameters=self.collaboration, time_step=self.law.time_step)
 
     def trial_judgement(self, context: Context) -> RunJudgement:
         """The verdict on the run in ``context`` (the success criteria of
@@ -460,4 +561,7 @@ def build_pipeline(task: Task | ConcreteTask | None = None, features: Mapping[st
         kwargs.setdefault("task", task)
     if task is not None and "config" not in kwargs and getattr(task, "simulation", None) is not None:
         kwargs["config"] = task.simulation
+    if isinstance(task, Task) and task.people and "people" not in kwargs:
+        kwargs["people"] = task.people
+        kwargs.setdefault("collaboration", task.collaboration)
     return Pipeline(features=features, plan=plan, **kwargs)

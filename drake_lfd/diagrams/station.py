@@ -71,6 +71,7 @@ from drake_lfd.io.simulation_config import DriveConfig, StationConfig
 from drake_lfd.robot.kinematics import NUM_JOINTS, UR5E_JOINT_NAMES, add_ur5e
 from drake_lfd.robot.scene import SceneGeometry, add_scene
 from drake_lfd.robot.workcell import Workcell
+from drake_lfd.systems.people import PeopleGeometry
 
 __all__ = ["Station", "build_station", "configure_ur5e_drive", "plant_output_port_names"]
 
@@ -153,6 +154,9 @@ class Station(Diagram):
     visualizer : MeshcatVisualizer or None
         The illustration visualizer ``ApplyVisualizationConfig`` added (recordings).
     config : StationConfig
+    people : PeopleGeometry or None
+        The people in the cell (``people=``, standing on the floor at ``floor_z``), a
+        SceneGraph geometry source; None without people (nothing is added then).
     workcell : Workcell
     X_WB, X_tool0_E : RigidTransform
     obstacles, safety_shells : tuple of Box
@@ -172,6 +176,8 @@ class Station(Diagram):
         tool=None,
         meshcat: Meshcat | None = None,
         config: StationConfig | None = None,
+        people=(),
+        floor_z: float = 0.0,
     ):
         super().__init__()
         config = StationConfig() if config is None else config
@@ -235,6 +241,11 @@ class Station(Diagram):
         for port_name, port in plant_ports.items():
             builder.ExportOutput(port, port_name)
         builder.ExportOutput(scene_graph.get_query_output_port(), "query_object")
+        # People in the cell (none: nothing is added): a geometry source of moving capsules.
+        self.people: PeopleGeometry | None = None
+        if people:
+            self.people = PeopleGeometry.AddToBuilder(builder=builder, scene_graph=scene_graph, people=people,
+                                                      floor_z=floor_z, face_xy=self.X_WB.translation()[:2])
 
         self.visualizer = None
         if meshcat is not None:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.math import RigidTransform
 
+from drake_lfd.diagrams.collaboration_result import CollaborationRecord
 from drake_lfd.diagrams.station import Station
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.robot.initial_ik import InitialConfiguration
@@ -92,6 +93,9 @@ class ClosedLoopResult:
     path_constraints : tuple of PathConstraint
         The trial's path constraints (``ConcreteTask.path_constraints``), which
         :func:`~drake_lfd.diagrams.judging.judge_run` checks on the log.
+    collaboration : CollaborationRecord or None
+        With people in the cell: separation, ``S_p`` and the speed override over the
+        run; None without people.
     """
 
     t: np.ndarray
@@ -113,6 +117,7 @@ class ClosedLoopResult:
     setup_wall_time_s: float = 0.0
     cpu_time_s: float = 0.0
     path_constraints: tuple = ()
+    collaboration: CollaborationRecord | None = None
 
     @property
     def closest_clearance(self) -> BoxClearance | None:
@@ -148,7 +153,8 @@ class ClosedLoopResult:
 
         ``critical_errors``, ``min_shell_distance_m`` (None when the scene has no
         obstacle or shell, or the value is not finite), ``max_joint_speed_fraction``,
-        ``t`` and ``q``. Unreached configurations have None errors.
+        ``t`` and ``q``; with people in the cell, ``collaboration``
+        (:meth:`CollaborationRecord.to_json`). Unreached configurations have None errors.
         """
 
         def number(value):
@@ -163,7 +169,7 @@ class ClosedLoopResult:
             "max_joint_speed_fraction": self.max_joint_speed_fraction,
             "t": self.t.tolist(),
             "q": self.q.tolist(),
-        }
+        } | ({} if self.collaboration is None else {"collaboration": self.collaboration.to_json()})
 
 
 def _pose_errors(X_WE: RigidTransform, X_WE_desired: RigidTransform) -> tuple[float, float]:
@@ -211,7 +217,9 @@ def critical_errors_from_log(t: np.ndarray, q: np.ndarray, due_times_s, X_WE_cri
 def read_trial(context, *, plan: ScheduledPlan, logger, monitor: ShellMonitor, station: Station,
                kinematics: UR5eKinematics | None = None, controller: str = "", stop_reason: str = "",
                wall_time_s: float = 0.0, cpu_time_s: float = 0.0, setup_wall_time_s: float = 0.0,
-               initial_configuration: InitialConfiguration | None = None) -> ClosedLoopResult | None:
+               initial_configuration: InitialConfiguration | None = None, due_times_s=None,
+               path_finished: bool | None = None,
+               collaboration: CollaborationRecord | None = None) -> ClosedLoopResult | None:
     """What the run in ``context`` (a root Context) did so far, read off the Context; None
     when ``plan`` (the plan in force) is not a plan.
 
@@ -223,7 +231,11 @@ def read_trial(context, *, plan: ScheduledPlan, logger, monitor: ShellMonitor, s
     (:func:`critical_errors_from_log`), the closest approach to every obstacle and shell
     (the monitor's records, the logged samples measured too) and the trial's path
     constraints. The Context is not changed. ``controller``, ``stop_reason``, the timings
-    and ``initial_configuration`` are what the caller knows of the run.
+    and ``initial_configuration`` are what the caller knows of the run. A run whose
+    speed was scaled (people in the cell) gives the times its path reached each critical
+    configuration (``due_times_s``; by default the plan's), whether the path was
+    finished (``path_finished``; by default whether the clock reached the plan's end) and
+    its ``collaboration`` record.
     """
     end = plan_end_time_s(plan)
     if end is None:
@@ -239,7 +251,7 @@ def read_trial(context, *, plan: ScheduledPlan, logger, monitor: ShellMonitor, s
         clearances = monitor.clearances_with_log(context, t, q)
     else:
         clearances = monitor.clearances(monitor.GetMyContextFromRoot(context))
-    stopped_early = now < end - 1e-9
+    stopped_early = now < end - 1e-9 if path_finished is None else not path_finished
     if stopped_early and not stop_reason:
         stop_reason = f"the run ended at t = {now:.3f} s, before the plan's end at {end:.3f} s"
     # The plant's state now, which the log would report at the next step, ends the
@@ -248,8 +260,8 @@ def read_trial(context, *, plan: ScheduledPlan, logger, monitor: ShellMonitor, s
     t_next = (math.floor(now / h + 1e-9) + 1) * h
     q_now = station.plant.GetPositions(station.plant.GetMyContextFromRoot(context), station.model)
     t_all, q_all = (np.append(t, t_next), np.vstack([q, q_now])) if not len(t) or t_next > t[-1] else (t, q)
-    critical_errors = critical_errors_from_log(t_all, q_all, plan.due_times_s(), plan.timed.X_WE_critical(), now,
-                                               kinematics, h)
+    due = plan.due_times_s() if due_times_s is None else due_times_s
+    critical_errors = critical_errors_from_log(t_all, q_all, due, plan.timed.X_WE_critical(), now, kinematics, h)
     return ClosedLoopResult(
         t=t, q=q, qdot=qdot, critical_errors=critical_errors, clearances=tuple(clearances),
         plan_start_time_s=plan.start_time_s, sim_time_s=now, wall_time_s=wall_time_s,
@@ -257,5 +269,6 @@ def read_trial(context, *, plan: ScheduledPlan, logger, monitor: ShellMonitor, s
         q_initial=q[0].copy() if len(q) else np.full(NUM_JOINTS, math.nan),
         initial_configuration=initial_configuration, X_WB=station.X_WB, X_tool0_E=station.X_tool0_E,
         velocity_limits=kinematics.velocity_limits(), setup_wall_time_s=setup_wall_time_s,
-        cpu_time_s=cpu_time_s, path_constraints=tuple(plan.result.task.path_constraints))
+        cpu_time_s=cpu_time_s, path_constraints=tuple(plan.result.task.path_constraints),
+        collaboration=collaboration)
 

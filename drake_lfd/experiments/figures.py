@@ -1,5 +1,6 @@
 """Figures written on request (matplotlib, headless): training curves, SE(3) plans, joint
-trajectories with their limits, distances to obstacles and shells.
+trajectories with their limits, distances to obstacles and shells, separation from people
+with the speed override.
 
 Each figure has a ``draw_*`` function that builds and returns the
 :class:`matplotlib.figure.Figure` (to show it, test it or save it yourself) and a
@@ -31,6 +32,8 @@ __all__ = [
     'joint_trajectories_figure',
     'draw_shell_distance',
     'shell_distance_figure',
+    'draw_separation',
+    'separation_figure',
     'save_figure',
 ]
 
@@ -267,3 +270,40 @@ def draw_shell_distance(t, distance, *, title="Distance to obstacles and safety 
 def shell_distance_figure(path, t, distance, *, title="Distance to obstacles and safety shells") -> Path:
     """:func:`draw_shell_distance`, written to ``path``; returns the path."""
     return save_figure(draw_shell_distance(t, distance, title=title), path)
+
+
+def draw_separation(separation_t, distance, protective_distance, t, override, *, people=(),
+                    title="Separation from people and the speed override") -> Figure:
+    """Each person's distance to the robot ``d`` and ISO/TS 15066's protective separation
+    distance ``S_p`` over time (``separation_t`` (k,), ``distance`` and
+    ``protective_distance`` (k, P), m), above the speed override (``t`` (m,),
+    ``override`` (m,)), protective stops shaded."""
+    figure = Figure(figsize=(6.5, 4.5), layout="constrained")
+    top, bottom = figure.subplots(2, 1, sharex=True, height_ratios=(2, 1))
+    distance = np.atleast_2d(np.asarray(distance, dtype=float).T).T
+    protective_distance = np.atleast_2d(np.asarray(protective_distance, dtype=float).T).T
+    names = list(people) or [f"person {i + 1}" for i in range(distance.shape[1])]
+    for index, name in enumerate(names):
+        line, = top.plot(separation_t, distance[:, index], lw=1.5, label=f"d, {name}")
+        top.plot(separation_t, protective_distance[:, index], lw=1.0, ls="--", color=line.get_color(),
+                 label=f"S_p, {name}")
+    top.set_ylabel("distance (m)")
+    top.set_title(title)
+    top.legend(fontsize=8)
+    override = np.asarray(override, dtype=float)
+    bottom.plot(t, override, color="k", lw=1.5, label="speed override ds/dt")
+    stopped = override <= 1e-9
+    if np.any(stopped):
+        bottom.fill_between(t, 0.0, 1.0, where=stopped, color="red", alpha=0.2, lw=0, label="protective stop")
+    bottom.set_ylim(-0.05, 1.05)
+    bottom.set_xlabel("t (s)")
+    bottom.set_ylabel("override")
+    bottom.legend(fontsize=8, loc="lower right")
+    return figure
+
+
+def separation_figure(path, separation_t, distance, protective_distance, t, override, *, people=(),
+                      title="Separation from people and the speed override") -> Path:
+    """:func:`draw_separation`, written to ``path``; returns the path."""
+    return save_figure(draw_separation(separation_t, distance, protective_distance, t, override, people=people,
+                                       title=title), path)

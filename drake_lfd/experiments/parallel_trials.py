@@ -113,8 +113,8 @@ class RunnerSpec:
     """What one TrialRunner (one pipeline Diagram) is built from; hashable, so a worker
     keeps one runner per spec.
 
-    ``task_file``, ``library`` (a bundled name or an absolute path), ``policy_file`` and
-    ``base`` say what to load; ``fingerprint`` (:func:`runner_spec`) changes when those
+    ``task_file``, ``library`` (a bundled name or an absolute path), ``policy_file``,
+    ``base`` and ``people_file`` (``simulate --people``) say what to load; ``fingerprint`` (:func:`runner_spec`) changes when those
     files do, so a long-lived worker of a cluster does not reuse a stale runner. Every
     other field is a keyword option of
     :class:`~drake_lfd.experiments.simulation.TrialRunner`, with its default: ``options``
@@ -127,12 +127,13 @@ class RunnerSpec:
     policy_file: str | None = None
     base: BasePlacement | None = None
     fingerprint: str = ""
+    people_file: str | None = None
     options: PlanningOptions = PlanningOptions()
     controller: str | None = None
 
     def runner_options(self) -> dict:
         """The TrialRunner keyword options: every field but what says what to load."""
-        loading = {"task_file", "library", "policy_file", "base", "fingerprint"}
+        loading = {"task_file", "library", "policy_file", "base", "fingerprint", "people_file"}
         return {field.name: getattr(self, field.name) for field in dataclasses.fields(self)
                 if field.name not in loading}
 
@@ -147,6 +148,10 @@ class RunnerSpec:
         from drake_lfd.io.task_files import load_task
 
         task = load_task(self.task_file)
+        if self.people_file is not None:
+            from drake_lfd.io.people_files import task_with_people
+
+            task = task_with_people(task, self.people_file)
         if self.base is None:
             return task
         return dataclasses.replace(task, X_WB=self.base.X_WB(task.X_WB))
@@ -183,7 +188,8 @@ def _fingerprint(*paths: Path | None) -> str:
     return digest.hexdigest()[:16]
 
 
-def runner_spec(task_file, library, *, policy_file=None, base: BasePlacement | None = None, **options) -> RunnerSpec:
+def runner_spec(task_file, library, *, policy_file=None, base: BasePlacement | None = None, people_file=None,
+                **options) -> RunnerSpec:
     """A RunnerSpec with absolute paths and the fingerprint of the files it names.
 
     Parameters
@@ -193,6 +199,8 @@ def runner_spec(task_file, library, *, policy_file=None, base: BasePlacement | N
         An opened library (its label names it: a bundled name or an absolute path).
     policy_file : str or Path, optional
     base : BasePlacement, optional
+    people_file : str or Path, optional
+        A people file put on the task (``simulate --people``).
     **options
         TrialRunner options, RunnerSpec fields: ``options`` (a
         :class:`~drake_lfd.planning.options.PlanningOptions`), ``controller``.
@@ -201,10 +209,13 @@ def runner_spec(task_file, library, *, policy_file=None, base: BasePlacement | N
 
     task_path = Path(task_file).resolve()
     policy_path = Path(policy_file).resolve() if policy_file else None
+    people_path = Path(people_file).resolve() if people_file else None
     return RunnerSpec(
         task_file=str(task_path), library=library.label,
         policy_file=None if policy_path is None else str(policy_path), base=base,
-        fingerprint=_fingerprint(task_path, policy_path, library.path / MANIFEST_NAME), **options,
+        people_file=None if people_path is None else str(people_path),
+        fingerprint=_fingerprint(task_path, policy_path, library.path / MANIFEST_NAME,
+                                 *(() if people_path is None else (people_path,))), **options,
     )
 
 

@@ -55,6 +55,7 @@ __all__ = [
     'SUMMARY_REASON_CHARACTERS',
     'shorten_reason',
     'describe_boxes',
+    'people_cost',
 ]
 
 
@@ -281,9 +282,12 @@ def clearance_over_time(task: Task, run: ClosedLoopResult, stride: int = 10) -> 
 
 
 def write_trial_figures(task: Task, outcome: TrialOutcome, out: Path, prefix: str) -> dict[str, str]:
-    """The SE(3) plan with triads, the joint trajectories with limits and, when the task has
+    """The SE(3) plan with triads, the joint trajectories with limits, with people in the
+    cell the separation, ``S_p`` and the speed override over time and, when the task has
     obstacles or shells, the distance to them over time; returns {kind: file name}."""
-    from drake_lfd.experiments.figures import joint_trajectories_figure, plan_figure, shell_distance_figure
+    from drake_lfd.experiments.figures import (
+        joint_trajectories_figure, plan_figure, separation_figure, shell_distance_figure,
+    )
 
     figures = {}
     concrete = outcome.plan.task
@@ -296,6 +300,12 @@ def write_trial_figures(task: Task, outcome: TrialOutcome, out: Path, prefix: st
     figures["joints"] = joint_trajectories_figure(
         out / f"{prefix}_joints.png", outcome.run.t, outcome.run.q, lower=lower, upper=upper,
         velocity_limit=kinematics.velocity_limits(), title=f"{prefix}: joints, trial {outcome.trial}").name
+    record = getattr(outcome.run, "collaboration", None)
+    if record is not None:
+        figures["separation"] = separation_figure(
+            out / f"{prefix}_separation.png", record.separation_t, record.distance_m, record.protective_distance_m,
+            record.t, record.override, people=record.people,
+            title=f"{prefix}: separation from people and speed override, trial {outcome.trial}").name
     if task.obstacles or task.safety_shells:
         t, distance = clearance_over_time(task, outcome.run)
         figures["distance"] = shell_distance_figure(
@@ -334,8 +344,9 @@ def describe_boxes(task: Task | None) -> str:
 
 def trial_summary_line(outcome: TrialOutcome, task: Task | None = None) -> str:
     """One console line per trial: composition (with ``--refine``, ``refined`` or why it
-    was not), closest approach to the boxes, and the verdict with every failure reason
-    (each cut to :data:`SUMMARY_REASON_CHARACTERS`).
+    was not), closest approach to the boxes, with people in the cell what they cost
+    (:func:`people_cost`), and the verdict with every failure reason (each cut to
+    :data:`SUMMARY_REASON_CHARACTERS`).
 
     ``task`` (or, without it, the trial's planned task) says which obstacles and shells
     the scene has, so a trial that did not run reads ``no run (1 obstacle, 1 shell)``.
@@ -354,4 +365,15 @@ def trial_summary_line(outcome: TrialOutcome, task: Task | None = None) -> str:
     refinement = getattr(outcome.plan, "refinement", None) if outcome.plan is not None else None
     if refinement is not None:  # planned with --refine: whether it took, or why not
         composition += "; refined" if refinement.refined else f"; not refined: {shorten_reason(refinement.reason)}"
+    record = getattr(outcome.run, "collaboration", None)
+    if record is not None:
+        clearance += "; " + people_cost(record)
     return f"trial {outcome.trial} (seed {outcome.seed}): {composition}; {clearance}; {verdict}"
+
+
+def people_cost(record) -> str:
+    """``people cost 4.9 s (slowed 5.6 s, 1 protective stop, closest 0.54 m)``: what
+    the people in the cell cost a run (a
+    :class:`~drake_lfd.diagrams.collaboration_result.CollaborationRecord`)."""
+    return (f"people cost {record.time_lost_s:.1f} s (slowed {record.time_scaled_s:.1f} s, "
+            f"{_count(record.protective_stops, 'protective stop')}, closest {record.min_separation_m:.2f} m)")

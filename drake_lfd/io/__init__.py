@@ -13,6 +13,8 @@ The modules:
   logger, planner system.
 * ``guidance_scripts``: the YAML scripts of ``drake-lfd record``.
 * ``yaml_checks``: checks shared by the YAML readers.
+* ``people_files``: people in the cell and speed and separation monitoring (``people:``,
+  ``collaboration:``; ``simulate --people``), read and checked.
 * ``demonstration_logs``: UR5e joint logs as RTDE CSV, read, checked and written.
 * ``rtde_logs``: full RTDE recordings, the TCP-offset check against ``actual_TCP_pose``.
 * ``rosbag_logs``: joint logs from ROS 1 and ROS 2 bags (``sensor_msgs/JointState``).

@@ -75,6 +75,7 @@ import dataclasses
 import math
 import re
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
@@ -92,6 +93,7 @@ from drake_lfd.core.timing import TimingLimits
 from drake_lfd.core.tool import ToolShape
 
 from drake_lfd.io import task_schema
+from drake_lfd.io.people_files import CollaborationSpec, PersonSpec, collaboration_from_spec, people_from_specs
 from drake_lfd.io.simulation_config import PipelineConfig
 
 # The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
@@ -102,6 +104,7 @@ from drake_lfd.io.yaml_checks import (
     finite,
     load_spec,
     pose,
+    positive as _positive,
     read_text,
     vector,
 )
@@ -144,9 +147,14 @@ MIN_ANGLE_GRID_DEG = 1e-3
 class TaskSpec(task_schema.TaskSpec):
     """The whole task file (see the module docstring): the keys of
     :class:`drake_lfd.io.task_schema.TaskSpec`, its ``simulation:`` block a
-    :class:`~drake_lfd.io.simulation_config.PipelineConfig`."""
+    :class:`~drake_lfd.io.simulation_config.PipelineConfig`, its ``people:`` and
+    ``collaboration:`` blocks :mod:`~drake_lfd.io.people_files`' records."""
 
     simulation: PipelineConfig = dataclasses.field(default_factory=PipelineConfig)
+    # People in the cell and speed and separation monitoring (io/people_files.py).
+    people: list[PersonSpec] = dataclasses.field(default_factory=list)
+    collaboration: Optional[CollaborationSpec] = dataclasses.field(
+        default=None, metadata={"expected": "a mapping of collaboration keys ({} for the defaults)"})
 
 
 # ----------------------------------------------------------------------------- loading
@@ -198,13 +206,6 @@ def _box(spec, *, file, field):
     euler = vector(spec.euler_zyx, 3, file=file, field=f"{field}.euler_zyx", convert=angle)
     rotation = rigid_transform_from_euler_zyx(np.zeros(3), euler).rotation()
     return Box(name=spec.name, centre=centre, size=size, rotation=rotation)
-
-
-def _positive(value, *, file, field):
-    value = finite(value, file=file, field=field)
-    if not value > 0.0:
-        raise InputError(f"must be > 0, got {value:g}", file=file, field=field)
-    return value
 
 
 def _tool(specs, *, file):
@@ -406,6 +407,8 @@ def task_from_spec(spec, *, file=None):
         simulation=spec.simulation.checked(file=file),
         tool=_tool(spec.tool, file=file),
         timing=_timing(spec.timing, file=file),
+        people=people_from_specs(spec.people, file=file),
+        collaboration=None if spec.collaboration is None else collaboration_from_spec(spec.collaboration, file=file),
     )
 
 

@@ -153,6 +153,12 @@ class TaskSpec:
     # Absent (None): the default tool sized from X_tool0_E; [] for no tool geometry.
     tool: Optional[list[ToolShapeSpec]] = dataclasses.field(
         default=None, metadata={"expected": "a list of tool shapes ([] for none)"})
+    # People in the cell and speed and separation monitoring: their schema is
+    # io/people_files.py's (its records need Drake), checked when the file is loaded
+    # (io/task_files.py's TaskSpec types them); here only as a list and a mapping.
+    people: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    collaboration: Optional[dict[str, Any]] = dataclasses.field(
+        default=None, metadata={"expected": "a mapping of collaboration keys ({} for the defaults)"})
 
 
 def check_task_text(text, *, file=None):

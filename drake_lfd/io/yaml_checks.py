@@ -9,7 +9,7 @@ and checks it against the Spec types (:func:`check_schema`), and only then calls
 recursion (at most :data:`MAX_YAML_DEPTH` levels: a file nested 500 deep would
 otherwise exhaust Python's recursion limit), and a value that an explicit tag cannot
 convert (``!!float abc``, ``!!int 0.5``) is refused with its line. :func:`finite`,
-:func:`coordinate`, :func:`angle`, :func:`vector` and :func:`pose` then convert and check
+:func:`positive`, :func:`non_negative`, :func:`coordinate`, :func:`angle`, :func:`vector` and :func:`pose` then convert and check
 the values; positions farther than :data:`MAX_COORDINATE_M` from the origin are out of
 any robot's reach and refused (so ``1e300`` can never reach the planner as ``inf``). Every problem becomes one
 :class:`~drake_lfd.core.errors.InputError` that names the file and the field
@@ -64,6 +64,8 @@ __all__ = [
     "check_schema",
     "angle_from_text",
     "finite",
+    "positive",
+    "non_negative",
     "coordinate",
     "angle",
     "vector",
@@ -387,6 +389,11 @@ def check_schema(value, schema, path, file, expected=None):
                 if typing.get_origin(alternative) is list:
                     check_schema(value, alternative, path, file)
                     return
+        elif isinstance(value, dict):  # an optional block: Optional[SomeSpec]
+            for alternative in alternatives:
+                if dataclasses.is_dataclass(alternative):
+                    check_schema(value, alternative, path, file)
+                    return
         elif any(
             alternative in (float, int, str) and _matches_scalar(value, alternative)
             for alternative in alternatives
@@ -515,6 +522,22 @@ def finite(value, *, file, field, what="a number"):
         raise InputError("is not a finite number (too large for any float)", file=file, field=field) from None
     if not math.isfinite(number):
         raise InputError(f"{value!r} is not a finite number", file=file, field=field)
+    return number
+
+
+def positive(value, *, file, field):
+    """A finite number > 0 (a size, a speed, a time span)."""
+    number = finite(value, file=file, field=field)
+    if not number > 0.0:
+        raise InputError(f"must be > 0, got {number:g}", file=file, field=field)
+    return number
+
+
+def non_negative(value, *, file, field):
+    """A finite number >= 0."""
+    number = finite(value, file=file, field=field)
+    if number < 0.0:
+        raise InputError(f"must be >= 0, got {number:g}", file=file, field=field)
     return number
 
 

@@ -21,6 +21,12 @@ drake`` or ``pseudo_inverse`` two Python systems replace the two middle arrows::
     plan               --PlanTrajectorySource-->       X_WE, V_WE    plan_trajectory_source
     X_WE, V_WE         --DifferentialIKController-->   q_command     differential_ik
 
+With people in the cell (a trial with ``people:``), the compiled pair is replaced::
+
+    plan + q_measured + separation --TimeScaledJointPathSource--> q_command   speed_override
+    query_object + state + dq/ds   --SeparationMonitor-->        separation  separation
+    time                           --PeopleGeometry-->           poses       people
+
 Recording a simulated demonstration (``drake_lfd.diagrams.kinesthetic``)::
 
     guidance pose      --VirtualHand-->                wrench on E   virtual_hand
@@ -46,6 +52,13 @@ The modules:
 * ``shell_monitor``: :class:`ShellMonitor`, how close the robot came to each obstacle and
   safety shell.
 * ``trial_end``: :class:`TrialEnd`, ends a run once its plan has been executed.
+* ``people``: :class:`PeopleGeometry`, the people in the cell as a SceneGraph geometry
+  source.
+* ``separation``: :class:`SeparationMonitor`, each person's distance to the robot, the
+  robot's approach speed and ISO/TS 15066's protective separation distance.
+* ``speed_override``: :class:`TimeScaledJointPathSource`, the plan's joint path followed
+  at the speed override the people's separation allows (replaces the compiled source and
+  controller when a trial has people).
 * ``virtual_hand``: :class:`VirtualHand`, the spring-damper hand that guides the arm in
   a simulated kinesthetic demonstration.
 * ``typed_ports``: type checks at ``DiagramBuilder.Connect`` for abstract ports.
@@ -73,6 +86,9 @@ from drake_lfd.systems.plan_trajectory_source import PlanTrajectorySource  # noq
 from drake_lfd.systems.planner import NO_PLAN, GivenPlan, PlannerSystem  # noqa: E402
 from drake_lfd.systems.shell_monitor import ShellMonitor  # noqa: E402
 from drake_lfd.systems.trial_end import TrialEnd  # noqa: E402
+from drake_lfd.systems.people import PeopleGeometry  # noqa: E402
+from drake_lfd.systems.separation import SeparationMonitor  # noqa: E402
+from drake_lfd.systems.speed_override import TimeScaledJointPathSource  # noqa: E402
 from drake_lfd.systems.virtual_hand import VirtualHand  # noqa: E402
 
 __all__ = [
@@ -90,6 +106,9 @@ __all__ = [
     "DifferentialIKController",
     "ShellMonitor",
     "TrialEnd",
+    "PeopleGeometry",
+    "SeparationMonitor",
+    "TimeScaledJointPathSource",
     "VirtualHand",
     "install_connect_check",
 ]

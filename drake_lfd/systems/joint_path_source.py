@@ -30,7 +30,16 @@ from drake_lfd.systems.joint_trajectory_controller import (
 )
 from drake_lfd.systems.planner import NO_PLAN
 
-__all__ = ["JointPathSource"]
+__all__ = ["JointPathSource", "run_joint_path"]
+
+
+def run_joint_path(plan, q_start, law: DifferentialIKLaw) -> tuple[np.ndarray, np.ndarray]:
+    """The joint path a run follows from ``q_start``: times (m,) and positions (m, 6), the
+    plan's (:func:`~drake_lfd.systems.joint_trajectory_controller.joint_path_of_plan`),
+    or the start held when ``plan`` is no plan (or a request)."""
+    if isinstance(plan, ScheduledPlan) and plan.planned:
+        return joint_path_of_plan(plan, q_start, law)
+    return np.zeros(1), np.asarray(q_start, dtype=float)[None, :]
 
 
 class JointPathSource(LeafSystem):
@@ -108,11 +117,7 @@ class JointPathSource(LeafSystem):
         """(t, q, w): the run's joint path and ``w_k`` from instant 0 to three periods
         past its end (held after)."""
         q_start = context.get_abstract_state(self._start_index).get_value()
-        plan = self.plan_input_port.Eval(context)
-        if isinstance(plan, ScheduledPlan) and plan.planned:
-            t, q = joint_path_of_plan(plan, q_start, self._law)
-        else:  # hold the start
-            t, q = np.zeros(1), np.asarray(q_start, dtype=float)[None, :]
+        t, q = run_joint_path(self.plan_input_port.Eval(context), q_start, self._law)
         count = max(int(np.ceil(t[-1] / self._time_step - 1e-9)), 0) + 3
         value.set_value((t, q, feed_forward_samples(t, q, self._time_step, self._gain, self._lead_s, 0, count)))
 

@@ -13,6 +13,8 @@ Not for: judging the run (``diagrams/judging.py``) or measuring it
 
 from __future__ import annotations
 
+import math
+
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import EventStatus, LeafSystem
 
@@ -42,33 +44,49 @@ class TrialEnd(LeafSystem):
         name: TrialEnd
         input_ports:
         - plan
+        - path_time (optional)
 
     ``plan``: an abstract :class:`~drake_lfd.planning.replanning.ScheduledPlan` (the
     planner system's output). A periodic publish every ``period`` s (the only event;
     nothing in the control loop) ends the run at the first check at or after the plan's
-    end, or at the first check when the input holds no plan.
+    end, or at the first check when the input holds no plan. With ``path_time=True`` the
+    plan's end is compared with the ``path_time`` input (the path position of a run whose
+    speed is scaled, ``speed_override.py``) instead of the clock, and a run still short
+    of it ``time_limit_s`` after the plan's end is ended there.
 
     Parameters
     ----------
     period : float
         How often the plan's end is checked, s: the run ends at most this much after it
         (:data:`TRIAL_END_PERIOD_S` by default).
+    path_time : bool
+        Declare the ``path_time`` input (1,).
+    time_limit_s : float
+        With ``path_time``: how long after the plan's end a run may go on.
     """
 
-    def __init__(self, *, period: float = TRIAL_END_PERIOD_S):
+    def __init__(self, *, period: float = TRIAL_END_PERIOD_S, path_time: bool = False,
+                 time_limit_s: float = math.inf):
         super().__init__()
         if not period > 0.0:
             raise ValueError(f"period must be > 0, got {period!r}")
         self._period = float(period)
+        self._time_limit_s = float(time_limit_s)
         self.plan_input_port = self.DeclareAbstractInputPort("plan", AbstractValue.Make(NO_PLAN))
+        self.path_time_input_port = self.DeclareVectorInputPort("path_time", 1) if path_time else None
         self.DeclarePeriodicPublishEvent(period_sec=self._period, offset_sec=0.0, publish=self._check)
 
     @staticmethod
     def AddToBuilder(*, builder, plan_output_port, period: float = TRIAL_END_PERIOD_S,
-                     name: str = "trial_end") -> "TrialEnd":
-        """Adds a TrialEnd named ``name`` watching ``plan_output_port``."""
-        system = builder.AddNamedSystem(name, TrialEnd(period=period))
+                     name: str = "trial_end", path_time_output_port=None,
+                     time_limit_s: float = math.inf) -> "TrialEnd":
+        """Adds a TrialEnd named ``name`` watching ``plan_output_port`` (and, when given,
+        ``path_time_output_port`` instead of the clock)."""
+        system = builder.AddNamedSystem(name, TrialEnd(period=period, path_time=path_time_output_port is not None,
+                                                       time_limit_s=time_limit_s))
         builder.Connect(plan_output_port, system.plan_input_port)
+        if path_time_output_port is not None:
+            builder.Connect(path_time_output_port, system.path_time_input_port)
         return system
 
     @property
@@ -80,6 +98,14 @@ class TrialEnd(LeafSystem):
         end = plan_end_time_s(plan)
         if end is None:
             return EventStatus.ReachedTermination(self, "nothing planned")
-        if context.get_time() >= end - 1e-9:
+        now = context.get_time()
+        if self.path_time_input_port is not None:
+            if self.path_time_input_port.Eval(context)[0] >= end - 1e-9:
+                return EventStatus.ReachedTermination(self, f"plan executed at t = {now:.3f} s")
+            if now >= end + self._time_limit_s - 1e-9:
+                return EventStatus.ReachedTermination(
+                    self, f"the path was still unfinished {self._time_limit_s:g} s after the plan's end")
+            return EventStatus.DidNothing()
+        if now >= end - 1e-9:
             return EventStatus.ReachedTermination(self, f"plan executed at t = {end:.3f} s")
         return EventStatus.DidNothing()
