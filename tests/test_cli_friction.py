@@ -26,10 +26,9 @@ from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.q_learning import episodes_to_steady, never_steady
 
 # The transferring scene (paper5's tool frame and base) with two path constraints the
-# tool's orientation breaks: two failure reasons of a closed-loop run, found only by the
-# judge (the plan-time joint check does not read path constraints), the second of which
-# used to be dropped from the console line. A shell or obstacle across the path would now
-# stop the plan itself (``no executable plan``).
+# tool's orientation breaks: planned without the plan-time joint check (which now reads
+# path constraints and would refuse it), a closed-loop run with two failure reasons, the
+# second of which used to be dropped from the console line.
 TASK_HEAD = """\
 X_WB: {p: [-0.2, 0.7, 0.0], euler_zyx: [0, 0, 0]}
 X_tool0_E: {p: [0, 0, 0.2], euler_zyx: [0, pi/2, 0]}
@@ -61,29 +60,28 @@ def trial_lines(text):
 
 
 @pytest.fixture(scope="module")
-def shell_on_path_run(tmp_path_factory):
-    """One ``simulate`` of the shell-on-path task, every output into folders that do not
-    exist yet."""
+def failed_trial(tmp_path_factory):
+    """One trial of the shell-on-path task planned without the joint check (the plan
+    breaks both path constraints) and run closed loop: (task, outcome)."""
+    from drake_lfd.experiments.simulation import run_trials
+    from drake_lfd.io.library import Library, library_features
+    from drake_lfd.io.task_files import load_task
+
     root = tmp_path_factory.mktemp("friction")
-    task = write_task(root / "shell_on_path.yaml", "shell_on_path")
-    out = {"json": root / "new" / "deep" / "results.json", "html": root / "recordings" / "run.html",
-           "figures": root / "figs" / "first"}
-    stdout = io.StringIO()
-    with contextlib.redirect_stdout(stdout):  # capsys is per test; this fixture is per module
-        code = cli.main(["simulate", str(task), "--library", "paper5", "--json", str(out["json"]),
-                         "--html", str(out["html"]), "--figures", str(out["figures"])])
-    return code, stdout.getvalue(), out
+    task = load_task(write_task(root / "shell_on_path.yaml", "shell_on_path"))
+    (outcome,), _ = run_trials(task, library_features(Library.open("paper5")), trials=1,
+                               options=PlanningOptions(joint_check=False))
+    return task, outcome
 
 
 @pytest.mark.slow
-def test_a_failed_trial_line_carries_every_failure_reason(shell_on_path_run):
-    code, stdout, out = shell_on_path_run
-    assert code == 4  # a trial failed
-    (trial,) = json.loads(out["json"].read_text())["trials"]
-    failures = trial["failures"]
-    assert not trial["success"] and len(failures) >= 2
-    assert [f.split(":")[0] for f in failures[-2:]] == ["path constraint con_1..con_2", "path constraint con_3..con_4"]
-    (line,) = trial_lines(stdout)
+def test_a_failed_trial_line_carries_every_failure_reason(failed_trial):
+    task, outcome = failed_trial
+    failures = [str(f) for f in outcome.failures]
+    assert not outcome.success and len(failures) >= 2
+    kinds = [f.split(":")[0] for f in failures]
+    assert "path constraint con_1..con_2" in kinds and "path constraint con_3..con_4" in kinds
+    line = trial_summary_line(outcome, task)
     assert "FAILED: " in line
     for reason in failures:  # each one, whole when short enough, the JSON keeps it whole
         assert shorten_reason(reason) in line
@@ -92,13 +90,28 @@ def test_a_failed_trial_line_carries_every_failure_reason(shell_on_path_run):
     assert "min distance " in line  # the clearance, in cm
 
 
+def test_the_same_task_with_the_joint_check_is_refused_naming_the_constraint(tmp_path, capsys):
+    task = write_task(tmp_path / "shell_on_path.yaml", "shell_on_path")
+    assert cli.main(["plan", str(task), "--library", "paper5"]) == 4
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "path_constraint" in line and "path constraint con_1..con_2" in line
+
+
 @pytest.mark.slow
-def test_simulate_creates_its_output_folders(shell_on_path_run):
-    code, _, out = shell_on_path_run
-    assert code == 4
+def test_simulate_creates_its_output_folders(tmp_path):
+    from drake_lfd.core.resources import scenarios_directory
+
+    out = {"json": tmp_path / "new" / "deep" / "results.json", "html": tmp_path / "recordings" / "run.html",
+           "figures": tmp_path / "figs" / "first"}
+    stdout = io.StringIO()
+    with contextlib.redirect_stdout(stdout):
+        code = cli.main(["simulate", str(scenarios_directory() / "transferring.yaml"), "--library", "paper5",
+                         "--trials", "1", "--json", str(out["json"]), "--html", str(out["html"]),
+                         "--figures", str(out["figures"])])
+    assert code == 0
     assert out["json"].is_file() and out["html"].is_file()
     assert sorted(p.name for p in out["figures"].iterdir()) == [
-        "shell_on_path_distance.png", "shell_on_path_joints.png", "shell_on_path_plan.png"]
+        "transferring_distance.png", "transferring_joints.png", "transferring_plan.png"]
 
 
 def test_a_trial_that_did_not_run_still_describes_the_scene(tmp_path, capsys):
