@@ -108,3 +108,16 @@ def test_the_planned_tending_task_runs_within_its_constraint_closed_loop():
         assert scheduled.planned
         judgement = judge_run(run)
         assert judgement.success, judgement.failures
+
+
+def test_a_replanned_remainder_keeps_the_constraints_ahead_renumbered():
+    from drake_lfd.core.tasks import PathConstraint
+    from drake_lfd.planning.replanning import constraints_from
+
+    upright = PathConstraint("orientation", 1, 4, np.zeros(3), 0.1)
+    pull = PathConstraint("orientation", 6, 7, np.zeros(3), 0.05)
+    # From con_3 on: the upright carry now runs con_1..con_2 of the remainder, the pull con_4..con_5.
+    assert [(c.con_from, c.con_to) for c in constraints_from((upright, pull), 3)] == [(1, 2), (4, 5)]
+    # From con_4 on: the carry is behind the robot.
+    assert [(c.con_from, c.con_to) for c in constraints_from((upright, pull), 4)] == [(3, 4)]
+    assert [(c.con_from, c.con_to) for c in constraints_from((upright, pull), 1)] == [(1, 4), (6, 7)]

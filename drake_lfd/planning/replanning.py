@@ -40,7 +40,7 @@ from drake_lfd.core.tasks import ConcreteCriticalConfiguration, ConcreteTask
 from drake_lfd.core.timing import TimedPlan
 from drake_lfd.planning.planner import PlanResult
 
-__all__ = ["ScheduledPlan", "task_fingerprint", "replan", "splice_timed_plans"]
+__all__ = ["ScheduledPlan", "task_fingerprint", "replan", "splice_timed_plans", "constraints_from"]
 
 # Two critical configurations closer than this (m, rad) are the same.
 _SAME_CON_TOLERANCE = 1e-9
@@ -248,7 +248,9 @@ def replan(
         start = _fixed_con_at(current.trajectory.GetPose(cut_time), grid)
         kept = heading
         remainder = (start,) + tuple(cons_new[heading:])
-    sub_task = dataclasses.replace(new_task, critical_configurations=remainder)
+    # The sub-task's con numbers start at the configuration it starts from.
+    sub_task = dataclasses.replace(new_task, critical_configurations=remainder,
+                                   path_constraints=constraints_from(new_task.path_constraints, kept))
     sub = plan(sub_task)
     if not sub.planned:
         return dataclasses.replace(current, task_fingerprint=task_digest, library_revision=library_revision,
@@ -274,3 +276,13 @@ def replan(
         max_correction_rotation_rad=max(old.max_correction_rotation_rad, sub.max_correction_rotation_rad),
     )
     return ScheduledPlan(result, current.start_time_s, task_digest, library_revision, current.revision + 1)
+
+
+def constraints_from(path_constraints, first: int) -> tuple:
+    """``path_constraints`` renumbered for a sub-task whose con_1 is the old con ``first``
+    (1-based) or a pose just before it: con ``c`` becomes ``c - first + 1`` (at least 1); a
+    constraint that ends at or before the sub-task's con_1 is gone."""
+    shift = first - 1
+    return tuple(dataclasses.replace(c, con_from=max(1, c.con_from - shift), con_to=c.con_to - shift)
+                 for c in path_constraints if c.con_to - shift > 1)
+
