@@ -151,6 +151,12 @@ def test_the_recording_shows_the_person_and_the_override(with_operator):
         assert any(name in command for command in commands), name
     animation = [command for command in commands if b"animation" in command]
     assert any(b"operator/torso" in command for command in animation)  # the person moves in the replay
+    # The robot is coloured by the override: every link's amber and red skins are drawn
+    # and their visibility is keyed in the replay.
+    for link in (b"upper_arm_link", b"forearm_link", b"wrist_3_link"):
+        skin = b"illustration/ur5e/" + link + b"/speed_override/stopped"
+        assert any(skin in command for command in commands), link
+        assert any(skin in command for command in animation), link
 
 
 @pytest.mark.slow

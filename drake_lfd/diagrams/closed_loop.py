@@ -44,7 +44,7 @@ from drake_lfd.diagrams.trial_result import ClosedLoopResult
 from drake_lfd.diagrams.recording_meshcat import recording_meshcat
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.planning.replanning import ScheduledPlan
-from drake_lfd.diagrams.override_indicator import draw_override_indicator, record_override
+from drake_lfd.diagrams.override_indicator import draw_override_indicator, draw_robot_skins, record_override
 from drake_lfd.diagrams.plan_markers import draw_plan
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.systems.trial_end import plan_end_time_s
@@ -204,6 +204,8 @@ class ClosedLoopRunner:
             visualizer.DeleteRecording()
             visualizer.StartRecording(set_transforms_while_recording=False)
         simulator.Initialize()  # setup, as the bare station's in bench_pipeline.py
+        skins = draw_robot_skins(self.meshcat, station.plant, station.scene_graph) \
+            if recording and pipeline.people else []
         setup_wall_time_s = time.perf_counter() - setup_start
 
         wall_start, cpu_start = time.perf_counter(), time.process_time()
@@ -243,7 +245,7 @@ class ClosedLoopRunner:
             visualizer.StopRecording()
             record = pipeline.collaboration_record(context)
             if record is not None:
-                record_override(visualizer.get_mutable_recording(), record.t, record.override)
+                record_override(visualizer.get_mutable_recording(), record.t, record.override, skins)
             visualizer.PublishRecording()
             atomic_write_bytes(Path(record_html), self.meshcat.StaticHtml().encode())
         return scheduled, result
