@@ -40,14 +40,15 @@ import math
 import time
 
 import numpy as np
-from pydrake.math import BsplineBasis
+from pydrake.math import BsplineBasis, RotationMatrix
 from pydrake.trajectories import BsplineTrajectory, PiecewisePose
 
 from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
-from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
+from drake_lfd.core.tasks import DeviationBound, RefinementBounds
 from drake_lfd.core.timing import TimedPlan, TimingLimits
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.robot.joint_path import JointPathChecker
+from drake_lfd.robot.path_constraints import allowed_deviation, constraint_rotation, describe_constraint
 from drake_lfd.robot.trajectory_optimization import (
     OptimizationScene,
     PoseBound,
@@ -123,15 +124,15 @@ class RefinementOptions:
         within it in the program already, assembling's refined motion took 4.77 s
         against 3.64 s). None, or ``pass_speed_m_s`` None: no such bound.
     path_constraint_margin_rad : float
-        A path constraint's tolerance is tightened by this in the program (3 deg).
+        The program holds each path constraint to what the check allows
+        (:func:`~drake_lfd.robot.path_constraints.allowed_deviation`, the measure the
+        search uses: its tolerance less the closed loop's tracking margin) less this
+        (1.5 deg), but at least half of that: the constraint holds only at the program's
+        samples, and the motion between them must keep it too.
     path_constraint_samples : int
         Path fractions each path constraint is constrained at, per span it covers (9;
-        with 6, 2 of 10 transferring plans tilted 9.0-9.4 deg between samples).
-    path_constraint_check_margin_rad : float
-        The check of the result holds each path constraint to its tolerance less this
-        (1.5 deg): the closed loop tracks the motion with some lag, and a refined
-        transferring trial (seed 2) followed within 10 deg at plan time reached 10.1 deg
-        in closed loop.
+        with 6, 2 of 10 transferring plans tilted 9.0-9.4 deg between samples); also the
+        tube's extra samples in each span the task bounds more tightly than the whole.
     num_control_points : int, optional
         B-spline control points (cubic; None: 6 plus 3 per span, so that after the ends'
         zero velocity and acceleration each span keeps about 3 free ones; when SNOPT
@@ -161,13 +162,16 @@ class RefinementOptions:
     pass_speed_m_s: float | None = 0.4
     pass_acceleration_m_s2: float | None = 1.5
     program_pass_speed_m_s: float | None = 0.4
-    path_constraint_margin_rad: float = math.radians(3.0)
+    path_constraint_margin_rad: float = math.radians(1.5)
     path_constraint_samples: int = 9
-    path_constraint_check_margin_rad: float = math.radians(1.5)
     num_control_points: int | None = None
     clearance_samples: int = 15
     budget: SolverBudget = SolverBudget()
     limits: TrajectoryLimits | None = None
+    starts: tuple = ("plain motion", "composed", "lines")
+    polish: bool = False
+    every_round: bool = False
+    energy_weight: float = 1e-3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -308,12 +312,18 @@ def path_fractions_of(plan: TimedPlan) -> np.ndarray:
 def tube_deviation(reference_plan: TimedPlan, fractions: np.ndarray, X_WE: list) -> tuple[float, float]:
     """Largest distance and angle of the poses ``X_WE`` at path fractions ``fractions``
     from ``reference_plan``'s path at the same fractions (see :class:`_Reference`)."""
-    reference = _Reference(reference_plan)
-    position, rotation = 0.0, 0.0
-    for s, X in zip(fractions, X_WE):
+    position, rotation = _deviations(_Reference(reference_plan), fractions, X_WE)
+    return float(position.max(initial=0.0)), float(rotation.max(initial=0.0))
+
+
+def _deviations(reference: _Reference, fractions: np.ndarray, X_WE: list) -> tuple[np.ndarray, np.ndarray]:
+    """The distance and the angle (m,) of each pose of ``X_WE`` from the reference path at
+    its path fraction."""
+    position, rotation = np.zeros(len(X_WE)), np.zeros(len(X_WE))
+    for k, (s, X) in enumerate(zip(fractions, X_WE)):
         R = reference.pose(s)
-        position = max(position, float(np.linalg.norm(X.translation() - R.translation())))
-        rotation = max(rotation, float(X.rotation().inverse().multiply(R.rotation()).ToAngleAxis().angle()))
+        position[k] = np.linalg.norm(X.translation() - R.translation())
+        rotation[k] = X.rotation().inverse().multiply(R.rotation()).ToAngleAxis().angle()
     return position, rotation
 
 
@@ -338,46 +348,116 @@ def shape_deviation(reference_plan: TimedPlan, X_WE: list) -> tuple[float, float
 # -- the program and its check ------------------------------------------------------------
 
 def _path_constraint_bounds(result: PlanResult, fractions: np.ndarray, options: RefinementOptions) -> list[PoseBound]:
+    """Each path constraint at ``path_constraint_samples`` fractions per span it covers:
+    within what the check allows (:func:`~drake_lfd.robot.path_constraints.allowed_deviation`)
+    less ``path_constraint_margin_rad``, but at least half of that."""
     bounds = []
     for constraint in result.task.path_constraints:
         if constraint.kind != "orientation":
             continue
-        R = rigid_transform_from_euler_zyx(np.zeros(3), constraint.euler_zyx).rotation()
-        angle = max(constraint.tolerance_rad - options.path_constraint_margin_rad, 0.5 * constraint.tolerance_rad)
+        R = RotationMatrix(constraint_rotation(constraint))
+        checked = allowed_deviation(constraint)
+        angle = max(checked - options.path_constraint_margin_rad, 0.5 * checked)
         a, b = fractions[constraint.con_from - 1], fractions[constraint.con_to - 1]
         count = options.path_constraint_samples * (constraint.con_to - constraint.con_from) + 1
         bounds += [PoseBound(float(s), R_WE=R, angle_rad=angle) for s in np.linspace(a, b, count)]
     return bounds
 
 
-def _tube_bounds(reference: _Reference, options: RefinementOptions) -> list[PoseBound]:
-    bounds = []
+@dataclasses.dataclass(frozen=True)
+class _Allowed:
+    """How far the refined motion may move E from the composed path: one distance and
+    one angle per span (con_j to con_j+1, arrays (n - 1,)), and which bound of the task
+    sets each (``sources``: (position, rotation) names per span)."""
+
+    fractions: np.ndarray
+    position_m: np.ndarray
+    rotation_rad: np.ndarray
+    sources: tuple
+
+    def at(self, s) -> tuple[np.ndarray, np.ndarray]:
+        """The distance and angle allowed at path fractions ``s`` (m,): their span's; at
+        a critical configuration between two spans, the tighter of the two."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        last = len(self.position_m) - 1
+        j = np.clip(np.searchsorted(self.fractions, s, side="right") - 1, 0, last)
+        position, rotation = self.position_m[j].copy(), self.rotation_rad[j].copy()
+        on = (j > 0) & (np.abs(s - self.fractions[j]) <= 1e-12)
+        position[on] = np.minimum(position[on], self.position_m[j[on] - 1])
+        rotation[on] = np.minimum(rotation[on], self.rotation_rad[j[on] - 1])
+        return position, rotation
+
+    def span_of(self, s: float) -> int:
+        return int(np.clip(np.searchsorted(self.fractions, s, side="right") - 1, 0, len(self.position_m) - 1))
+
+
+def allowed_deviations(task, options: RefinementOptions = None) -> tuple[np.ndarray, np.ndarray]:
+    """How far refinement may move E from the composed path over each span of ``task``
+    (con_j to con_j+1): distances and angles (n - 1,), from the task's ``refinement``
+    block, its path constraints and ``options``' tube (docs/task_files.rst)."""
+    allowed = _allowed(task, np.linspace(0.0, 1.0, len(task.critical_configurations)),
+                       options or RefinementOptions())
+    return allowed.position_m, allowed.rotation_rad
+
+
+def _allowed(task, fractions: np.ndarray, options: RefinementOptions) -> _Allowed:
+    """The task file's bounds on the refinement (docs/task_files.rst): ``refinement.max_deviation``
+    for the whole task (absent fields: ``options``' tube), replaced over a span by each
+    entry of ``refinement.spans`` that covers it (the tighter of several), then tightened by
+    each path constraint over its spans (its ``max_deviation``; its rotation within its
+    tolerance unless that says otherwise)."""
+    spans = len(fractions) - 1
+    bounds = getattr(task, "refinement", None) or RefinementBounds()
+    whole = bounds.max_deviation
+    values = [np.full(spans, whole.position_m if whole.position_m is not None else options.tube_position_m),
+              np.full(spans, whole.rotation_rad if whole.rotation_rad is not None else options.tube_rotation_rad)]
+    sources = [["refinement.max_deviation" if value is not None else "the default"] * spans
+               for value in (whole.position_m, whole.rotation_rad)]
+    replaced = [np.full(spans, np.inf), np.full(spans, np.inf)]
+    replaced_by = [[None] * spans, [None] * spans]
+    for index, span in enumerate(bounds.spans):
+        for axis, value in enumerate((span.position_m, span.rotation_rad)):
+            for j in range(span.con_from - 1, span.con_to - 1):
+                if value is not None and value < replaced[axis][j]:
+                    replaced[axis][j], replaced_by[axis][j] = value, f"refinement.spans[{index}]"
+    for axis in range(2):
+        for j in range(spans):
+            if replaced_by[axis][j] is not None:
+                values[axis][j], sources[axis][j] = replaced[axis][j], replaced_by[axis][j]
+    for constraint in task.path_constraints:
+        bound = constraint.max_deviation or DeviationBound()
+        rotation = bound.rotation_rad if bound.rotation_rad is not None else constraint.tolerance_rad
+        for axis, value in enumerate((bound.position_m, rotation)):
+            for j in range(constraint.con_from - 1, constraint.con_to - 1):
+                if value is not None and value < values[axis][j]:
+                    values[axis][j], sources[axis][j] = value, describe_constraint(constraint)
+    return _Allowed(np.asarray(fractions, dtype=float), values[0], values[1],
+                    tuple(zip(sources[0], sources[1])))
+
+
+def _tube_bounds(reference: _Reference, options: RefinementOptions, allowed: _Allowed | None = None) -> list[PoseBound]:
+    """The tube in the program: E within ``tube_margin`` of the allowed deviation from the
+    composed path at ``tube_samples`` fractions evenly in ``s`` and as many evenly along
+    its arc length, and at ``path_constraint_samples`` inner fractions of each span the
+    task bounds more tightly than the whole (a short span with its own bound would
+    otherwise hold hardly a sample)."""
+    if allowed is None:
+        allowed = _Allowed(reference.fractions, np.full(len(reference.fractions) - 1, options.tube_position_m),
+                           np.full(len(reference.fractions) - 1, options.tube_rotation_rad), ())
     evenly_in_s = np.linspace(0.0, 1.0, options.tube_samples + 2)[1:-1]
-    for s in np.union1d(evenly_in_s, reference.evenly_along(options.tube_samples)):
+    samples = np.union1d(evenly_in_s, reference.evenly_along(options.tube_samples))
+    widest = (allowed.position_m.max(), allowed.rotation_rad.max())
+    for j in range(len(allowed.position_m)):
+        if allowed.position_m[j] < widest[0] or allowed.rotation_rad[j] < widest[1]:
+            a, b = allowed.fractions[j], allowed.fractions[j + 1]
+            samples = np.union1d(samples, np.linspace(a, b, options.path_constraint_samples + 2)[1:-1])
+    position, rotation = allowed.at(samples)
+    bounds = []
+    for s, radius, angle in zip(samples, position, rotation):
         X = reference.pose(s)
-        bounds.append(PoseBound(float(s), p_W=X.translation(), radius_m=options.tube_margin * options.tube_position_m,
-                                R_WE=X.rotation(), angle_rad=options.tube_margin * options.tube_rotation_rad))
+        bounds.append(PoseBound(float(s), p_W=X.translation(), radius_m=options.tube_margin * float(radius),
+                                R_WE=X.rotation(), angle_rad=options.tube_margin * float(angle)))
     return bounds
-
-
-def _path_constraint_violation(result: PlanResult, plan: TimedPlan, X_WE: list, times: np.ndarray,
-                               margin_rad: float) -> str | None:
-    """The first path constraint the followed poses break by more than its tolerance less
-    ``margin_rad``, as a reason; else None."""
-    due = [plan.times[i] for i in plan.critical_indices]
-    for constraint in result.task.path_constraints:
-        if constraint.kind != "orientation":
-            continue
-        R = rigid_transform_from_euler_zyx(np.zeros(3), constraint.euler_zyx).rotation()
-        t_from, t_to = due[constraint.con_from - 1], due[constraint.con_to - 1]
-        angles = [X.rotation().inverse().multiply(R).ToAngleAxis().angle()
-                  for X, t in zip(X_WE, times) if t_from - 1e-9 <= t <= t_to + 1e-9]
-        allowed = constraint.tolerance_rad - margin_rad
-        if angles and max(angles) > allowed:
-            return (f"path constraint con_{constraint.con_from}..con_{constraint.con_to}: tool orientation "
-                    f"{math.degrees(max(angles)):.1f} deg > {math.degrees(allowed):g} deg (the constraint's "
-                    f"{math.degrees(constraint.tolerance_rad):g} less the closed loop's tracking margin)")
-    return None
 
 
 def _fractions_by_joint_arc_length(t: np.ndarray, q: np.ndarray, due: list, fractions: np.ndarray) -> np.ndarray:
@@ -446,7 +526,8 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     s_path = _fractions_by_joint_arc_length(path.t[within], q_path, [timed.times[i] for i in timed.critical_indices],
                                             fractions)
     path_bounds = _path_constraint_bounds(result, fractions, options)
-    bounds = path_bounds + (_tube_bounds(reference, options) if method == "refine" else [])
+    allowed = _allowed(result.task, fractions, options)
+    bounds = path_bounds + (_tube_bounds(reference, options, allowed) if method == "refine" else [])
     # Each inner critical configuration's configuration on the composed joint path (the
     # pass-speed bound is linearized there).
     q_due = [q_path[min(int(np.searchsorted(s_path, f)), len(q_path) - 1)] for f in fractions[1:-1]]
@@ -464,7 +545,8 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
         nonlocal solve_time
         solved = optimize_joint_trajectory(
             scene, guess, guess_duration_s=duration, targets=targets, bounds=program_bounds,
-            clearance_samples=options.clearance_samples, limits=limits, budget=options.budget)
+            clearance_samples=options.clearance_samples, limits=limits, budget=options.budget,
+            energy_weight=options.energy_weight if method == "refine" else 0.0)
         solve_time += solved.solve_time_s
         work["evaluations"] += solved.evaluations
         work["attempts"] += 1
@@ -472,15 +554,18 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
 
     # Up to two rounds, the second with 1.5 times the control points (a spline too stiff
     # for the tube is a usual cause of an infeasible program; and a different program is
-    # a fresh chance where SNOPT ended in a poor local solution); in each, the program
-    # from each start of ``_starts`` in turn, until a motion passes every check. A fixed
-    # number of solves at most, so the work stays bounded and the answer deterministic.
+    # a fresh chance where SNOPT ended in poor local solutions); in each, the program from
+    # every start of ``_starts``, and the shortest motion that passes every check, polished
+    # once (the program again from that motion). A fixed number of solves at most, each
+    # within the iteration budget, so the work stays bounded and the answer deterministic.
     rounds = (count,) if options.num_control_points else (count, count + count // 2)
+    passed = []
     for attempt in rounds:
         failures = []
         line_guess = fit_bspline(*lines, attempt, rest_ends=True, pins=pins)
         composed = functools.partial(fit_bspline, s_path, q_path, attempt, rest_ends=True, pins=pins)
-        for label, guess, duration, first in _starts(method, line_guess, composed, limits, solve, path_bounds):
+        for label, guess, duration, first in _starts(method, line_guess, composed, limits, solve, path_bounds,
+                                                     options.starts):
             solved = first if guess is None else solve(guess, duration, bounds)
             if solved.safety_stopped:
                 return dataclasses.replace(result, refinement=report("failed", f"error: {solved.status}", solve_time))
@@ -488,17 +573,30 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
                 failures.append((label, f"optimizer: {solved.status}", None))
                 continue
             work["budget_spent"] = solved.budget_spent
-            checked = _check_motion(result, checker, scene, solved, fractions, limits, options, method)
+            checked = _check_motion(result, checker, scene, solved, allowed, limits, options, method)
             if checked.reason is None:
-                return dataclasses.replace(result, timed=checked.plan, joint_path=checked.followed,
-                                           refinement=report("refined", "", solve_time, checked.plan.duration,
-                                                             checked.position, checked.rotation, checked.fractions))
-            reason = checked.reason
-            if solved.budget_spent:
-                reason = f"{reason}; SNOPT's last iterate at its {solved.status}"
-            elif solved.nearly_feasible:
-                reason = f"{reason}; SNOPT's last iterate, {solved.status}"
-            failures.append((label, reason, checked))
+                passed.append((checked, solved))
+                continue
+            failures.append((label, _with_iterate(checked.reason, solved), checked))
+        if passed and not options.every_round:
+            break
+    if passed:
+        if True:
+            # The shortest (the first of equals, in the starts' order).
+            checked, solved = min(passed, key=lambda pair: pair[0].plan.duration)
+            if options.polish:
+                polished = solve(*_in_path_fraction(solved.trajectory), bounds)
+                if polished.safety_stopped:
+                    return dataclasses.replace(result, refinement=report("failed", f"error: {polished.status}",
+                                                                         solve_time))
+                if polished.trajectory is not None:
+                    again = _check_motion(result, checker, scene, polished, allowed, limits, options, method)
+                    if again.reason is None and again.plan.duration < checked.plan.duration:
+                        checked, solved = again, polished
+            work["budget_spent"] = solved.budget_spent
+            return dataclasses.replace(result, timed=checked.plan, joint_path=checked.followed,
+                                       refinement=report("refined", "", solve_time, checked.plan.duration,
+                                                         checked.position, checked.rotation, checked.fractions))
     # The last round's failures, in the starts' order: the first as it is, each other one
     # with the start it comes from.
     reason = "; ".join([failures[0][1]] + [f"{_START_NAMES[label]}: {text}" for label, text, _ in failures[1:]])
@@ -509,37 +607,57 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
                                                          checked.position, checked.rotation, checked.fractions))
 
 
+def _with_iterate(reason: str, solved) -> str:
+    """A failed check's reason, saying when the motion was SNOPT's last iterate."""
+    if solved.budget_spent:
+        return f"{reason}; SNOPT's last iterate at its {solved.status}"
+    if solved.nearly_feasible:
+        return f"{reason}; SNOPT's last iterate, {solved.status}"
+    return reason
+
+
 # How a failure reason names the start it comes from (``_starts``).
-_START_NAMES = {"plain motion": "from the plain program's motion", "composed": "from the composed path"}
+_START_NAMES = {"plain motion": "from the plain program's motion", "composed": "from the composed path",
+                "lines": "from straight joint-space lines"}
+#: The starts of the tube program (``_starts``), in the order they are tried.
+STARTS = tuple(_START_NAMES)
 
 
-def _starts(method: str, line_guess, composed_guess, limits: TrajectoryLimits, solve, path_bounds):
-    """The program's starts, in the order they are tried, as ``(label, guess, duration,
-    None)``, or ``(label, None, None, answer)`` when the solve that makes a start gave
-    no motion (``answer``: that solve's). Lazy: a start is made only when the ones
-    before it gave no motion that passed the checks.
+def _starts(method: str, line_guess, composed_guess, limits: TrajectoryLimits, solve, path_bounds,
+            starts=STARTS):
+    """The program's starts, in order, as ``(label, guess, duration, None)``, or
+    ``(label, None, None, answer)`` when the solve that makes a start gave no motion
+    (``answer``: that solve's).
 
     ``plain``: ``line_guess`` (straight joint-space lines through the composed path's
-    configurations at the critical configurations). ``refine``: first the plain
-    program's motion: the program without the tube (the same limits, targets and path
-    constraints), solved from ``line_guess`` with ``solve(guess, duration,
-    path_bounds)``; then the composed joint path (``composed_guess()``). From the
-    composed path SNOPT lands in poor local solutions where the demonstrations detour:
-    on assembling (``paper6``) the tube program from it ended at a 4.60 s motion, from
-    the plain program's motion (3.62 s, which the tube hardly changes) at 3.66 s; on
-    filling and pouring (seed 4) 6.54 s against 4.28 s. Where the plain program's
-    motion fails a check in the tube (transferring, seed 3: it struck a shell), the
-    composed path's start refines."""
+    configurations at the critical configurations). ``refine``: each of ``starts``:
+    ``plain motion``, the plain program's motion (the program without the tube, the
+    same limits, targets and path constraints, solved from ``line_guess`` with
+    ``solve(guess, duration, path_bounds)``); ``composed``, the composed joint path
+    (``composed_guess()``); ``lines``, ``line_guess`` itself. Which local solution SNOPT
+    reaches from one start moves with the last bits of the plan (on transferring, seed
+    11, a perturbation of 1e-9 rad turned the plain motion's 3.50 s into a refused motion
+    and the plan fell to the composed path's 3.95 s); the shortest of several starts
+    that pass the checks moves far less. From the composed path alone SNOPT lands in
+    poor local solutions where the demonstrations detour (assembling: 4.60 s against
+    3.66 s from the plain motion)."""
     if method == "plain":
         yield "plain", line_guess, _duration_guess(line_guess, limits), None
         return
-    plain = solve(line_guess, _duration_guess(line_guess, limits), path_bounds)
-    if plain.trajectory is None:
-        yield "plain motion", None, None, plain
-    else:
-        yield ("plain motion",) + _in_path_fraction(plain.trajectory) + (None,)
-    guess = composed_guess()
-    yield "composed", guess, _duration_guess(guess, limits), None
+    for label in starts:
+        if label == "plain motion":
+            plain = solve(line_guess, _duration_guess(line_guess, limits), path_bounds)
+            if plain.trajectory is None:
+                yield label, None, None, plain
+            else:
+                yield (label,) + _in_path_fraction(plain.trajectory) + (None,)
+        elif label == "composed":
+            guess = composed_guess()
+            yield label, guess, _duration_guess(guess, limits), None
+        elif label == "lines":
+            yield label, line_guess, _duration_guess(line_guess, limits), None
+        else:
+            raise ValueError(f"unknown start {label!r} (known: {', '.join(STARTS)})")
 
 
 def _in_path_fraction(trajectory: BsplineTrajectory) -> tuple[BsplineTrajectory, float]:
@@ -563,13 +681,14 @@ class _Checked:
 
 
 def _check_motion(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene, solved,
-                  fractions: np.ndarray, limits: TrajectoryLimits, options: RefinementOptions,
+                  allowed: _Allowed, limits: TrajectoryLimits, options: RefinementOptions,
                   method: str) -> _Checked:
     """Samples the solver's motion at the controller's period (module docstring), follows
-    it with ``checker`` and checks it: executable, every critical configuration within
-    ``check_fraction`` of the success tolerances, the path constraints, the tube
-    (``refine``) and shorter than the composed plan."""
-    timed, dt = result.timed, checker.time_step
+    it with ``checker`` holding the task's path constraints (as the search does) and
+    checks it: executable, every critical configuration within ``check_fraction`` of the
+    success tolerances, within the task's bounds on the deviation from the composed path
+    (``refine``; span by span, ``allowed``) and shorter than the composed plan."""
+    timed, dt, fractions = result.timed, checker.time_step, allowed.fractions
     t, q, X, indices, s_samples = sample_trajectory(scene, solved.trajectory, fractions, time_step=dt,
                                                     tool_speed_m_s=limits.tool_speed_m_s,
                                                     tool_acceleration_m_s2=limits.tool_acceleration_m_s2,
@@ -577,7 +696,7 @@ def _check_motion(result: PlanResult, checker: JointPathChecker, scene: Optimiza
                                                     pass_acceleration_m_s2=options.pass_acceleration_m_s2)
     poses = dual_quaternion_from_matrices(np.array([x.GetAsMatrix4() for x in X]))
     plan = TimedPlan(t, poses, tuple(indices))
-    followed = checker.follow(plan, q[0])
+    followed = checker.follow(plan, q[0], path_constraints=result.task.path_constraints)
     duration = plan.duration
 
     def checked(reason, position=math.nan, rotation=math.nan):
@@ -611,18 +730,38 @@ def _check_motion(result: PlanResult, checker: JointPathChecker, scene: Optimiza
                            f"success tolerances)")
     X_followed = [scene.X_WE(x) for x in followed.q]
     s_followed = np.interp(np.minimum(followed.t, duration), t, s_samples)
-    position, rotation = tube_deviation(timed, s_followed, X_followed)
-    violation = _path_constraint_violation(result, plan, X_followed, followed.t,
-                                           options.path_constraint_check_margin_rad)
-    if violation is not None:
-        return checked(f"check: {violation}", position, rotation)
-    if method == "refine" and (position > options.tube_position_m or rotation > options.tube_rotation_rad):
-        return checked(f"check: leaves the tube ({1000 * position:.0f} mm, {math.degrees(rotation):.1f} deg; "
-                       f"tube {1000 * options.tube_position_m:.0f} mm, "
-                       f"{math.degrees(options.tube_rotation_rad):.0f} deg)", position, rotation)
+    deviation = _deviations(_Reference(timed), s_followed, X_followed)
+    position, rotation = float(deviation[0].max(initial=0.0)), float(deviation[1].max(initial=0.0))
+    if method == "refine":
+        excess = _excess(allowed, s_followed, *deviation)
+        if excess is not None:
+            return checked(f"check: {excess}", position, rotation)
     if not duration < timed.duration:
         return checked(f"not shorter ({duration:.2f} s, unrefined {timed.duration:.2f} s)", position, rotation)
     return checked(None, position, rotation)
+
+
+def _excess(allowed: _Allowed, s: np.ndarray, position: np.ndarray, rotation: np.ndarray) -> str | None:
+    """Where the followed motion (at path fractions ``s``, its deviations ``position`` and
+    ``rotation`` from the composed path) goes furthest beyond the task's bound, relative
+    to the bound, as a reason naming the span and the bound; None when it keeps every
+    bound."""
+    if not len(s):
+        return None
+    radius, angle = allowed.at(s)
+    over = np.maximum(position / radius, rotation / angle)
+    k = int(np.argmax(over))
+    if over[k] <= 1.0:
+        return None
+    j = allowed.span_of(s[k])
+    axis = 0 if position[k] / radius[k] >= rotation[k] / angle[k] else 1
+    value, limit, unit = ((1000 * position[k], 1000 * radius[k], "mm") if axis == 0 else
+                          (math.degrees(rotation[k]), math.degrees(angle[k]), "deg"))
+    digits = 0 if axis == 0 else 1
+    while digits < 3 and round(value, digits) <= round(limit, digits):  # digits enough to show the excess
+        digits += 1
+    return (f"moves {value:.{digits}f} {unit} from the composed path between con_{j + 1} and con_{j + 2} where "
+            f"{allowed.sources[j][axis]} allows {limit:g} {unit}")
 
 
 def refine_plan(result: PlanResult, checker: JointPathChecker, *, scene: OptimizationScene | None = None,

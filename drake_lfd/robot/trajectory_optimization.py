@@ -480,6 +480,7 @@ def optimize_joint_trajectory(
     clearance_samples: int = 40,
     limits: TrajectoryLimits = TrajectoryLimits(),
     budget: SolverBudget = SolverBudget(),
+    energy_weight: float = 0.0,
 ) -> OptimizedTrajectory:
     """Solves the program of the module docstring from ``guess`` (a B-spline in path
     fraction, on [0, 1], its ends the fixed start and goal configurations).
@@ -507,12 +508,14 @@ def optimize_joint_trajectory(
     program), with ``solve_time_s`` 0 (no solve ran). A solve the safety stop ended is
     not remembered.
     """
-    key = _program_key(guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget)
+    key = _program_key(guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget) + \
+        _numbers([energy_weight])
     solved = []
 
     def solve():
         solved.append(True)
-        return _solve(scene, guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget)
+        return _solve(scene, guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget,
+                      energy_weight)
 
     # A safety-stopped solve depends on the clock: returned, not remembered.
     answer = scene.solutions.get(key, solve, keep=lambda answer: not answer.safety_stopped)
@@ -554,7 +557,7 @@ def _program_key(guess: BsplineTrajectory, guess_duration_s: float, targets: Seq
 
 def _solve(scene: OptimizationScene, guess: BsplineTrajectory, guess_duration_s: float,
            targets: Sequence[PoseTarget], bounds: Sequence[PoseBound], clearance_samples: int,
-           limits: TrajectoryLimits, budget: SolverBudget) -> OptimizedTrajectory:
+           limits: TrajectoryLimits, budget: SolverBudget, energy_weight: float = 0.0) -> OptimizedTrajectory:
     """:func:`optimize_joint_trajectory` without the memo."""
     plant, context, frame_E = scene.plant, scene.plant_context, scene.frame_E
     world = plant.world_frame()
@@ -562,6 +565,8 @@ def _solve(scene: OptimizationScene, guess: BsplineTrajectory, guess_duration_s:
     control = np.hstack(guess.control_points())  # (n, num_control_points)
     trajopt = KinematicTrajectoryOptimization(n, control.shape[1], guess.basis().order(), guess_duration_s)
     trajopt.AddDurationCost(1.0)
+    if energy_weight > 0.0:
+        trajopt.AddPathEnergyCost(energy_weight)
     trajopt.AddDurationConstraint(limits.min_duration_s, limits.max_duration_s)
     lower, upper = plant.GetPositionLowerLimits().copy(), plant.GetPositionUpperLimits().copy()
     for j in (2, 4):  # elbow and wrist: stay on the side of the singularity both ends are on
