@@ -172,6 +172,8 @@ class RefinementOptions:
     polish: bool = False
     every_round: bool = False
     energy_weight: float = 1e-3
+    equal_duration: float = 0.005
+    program_limits: dict = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -535,7 +537,7 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     targets = [PoseTarget(float(s), X, options.con_position_tolerance_m, options.con_rotation_tolerance_rad,
                           pass_speed, q)
                for s, X, q in zip(fractions[1:-1], reference.critical_poses[1:-1], q_due)]
-    limits = options.limits or TrajectoryLimits.of_timing(result.task.timing or TimingLimits())
+    limits = options.limits or TrajectoryLimits.of_timing(result.task.timing or TimingLimits(), **options.program_limits)
     count = options.num_control_points or 6 + 3 * (len(fractions) - 1)
     pins = list(zip(fractions[1:-1], q_due))
     lines = _through_critical_configurations(fractions, q_path[0], q_due, q_goal)
@@ -582,8 +584,11 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
             break
     if passed:
         if True:
-            # The shortest (the first of equals, in the starts' order).
-            checked, solved = min(passed, key=lambda pair: pair[0].plan.duration)
+            # The first, in the starts' order, of the motions whose program duration is
+            # within ``equal_duration`` of the shortest.
+            shortest = min(solved.duration for _, solved in passed)
+            checked, solved = next(pair for pair in passed
+                                   if pair[1].duration <= (1.0 + options.equal_duration) * shortest)
             if options.polish:
                 polished = solve(*_in_path_fraction(solved.trajectory), bounds)
                 if polished.safety_stopped:
