@@ -177,20 +177,22 @@ def test_the_tube_program_runs_from_every_start_and_keeps_the_shortest_that_pass
     """Which local solution SNOPT reaches from one start moves with the last bits of the
     plan (transferring seed 1: from the composed path 2.70 s on one machine, 2.38 s on
     another), so the tube program runs from each start (the plain program's motion, the
-    composed path, straight joint-space lines) and the plan is the motion of the shortest
-    program solution among those that pass every check: a property of every answer,
-    whichever minima SNOPT reaches."""
+    composed path, straight joint-space lines) and the plan is the motion of the first
+    start whose program duration is within ``equal_duration`` of the shortest among those
+    that pass every check: a property of every answer, whichever minima SNOPT reaches."""
     composed, checker, scene = transferring_1
     checked_motions = _spying_on_checks(monkeypatch)
     report = refine_plan(composed, checker, scene=scene).refinement
     assert report.status == "refined", report.reason
-    starts = RefinementOptions().starts
-    assert report.attempts == 1 + len(starts)  # the plain program, then the tube program from each start
-    assert len(checked_motions) == len(starts)
+    options = RefinementOptions()
+    # The plain program, then the tube program from each start (and once more from a
+    # motion through the clearance); a solve without a motion is not checked.
+    assert report.attempts >= 1 + len(options.starts)
+    assert 1 <= len(checked_motions) <= report.attempts - 1
     passed = [(solved, checked) for solved, checked in checked_motions if checked.reason is None]
-    best = min(passed, key=lambda pair: pair[0].duration)
-    assert report.duration_s == pytest.approx(best[1].plan.duration)
-    assert all(best[0].duration <= solved.duration for solved, _ in passed)
+    shortest = min(solved.duration for solved, _ in passed)
+    first = next(checked for solved, checked in passed if solved.duration <= (1 + options.equal_duration) * shortest)
+    assert report.duration_s == first.plan.duration
 
 
 def test_a_start_whose_motion_fails_a_check_is_passed_over(transferring, monkeypatch):
@@ -200,9 +202,12 @@ def test_a_start_whose_motion_fails_a_check_is_passed_over(transferring, monkeyp
     checked_motions = _spying_on_checks(monkeypatch, refuse=(0,))
     report = refine_plan(composed, checker, scene=scene).refinement
     assert report.status == "refined", report.reason
-    assert report.attempts == 1 + len(RefinementOptions().starts)
+    options = RefinementOptions()
+    assert report.attempts >= 1 + len(options.starts)
     others = [(solved, checked) for solved, checked in checked_motions[1:] if checked.reason is None]
-    assert report.duration_s == pytest.approx(min(others, key=lambda pair: pair[0].duration)[1].plan.duration)
+    shortest = min(solved.duration for solved, _ in others)
+    first = next(checked for solved, checked in others if solved.duration <= (1 + options.equal_duration) * shortest)
+    assert report.duration_s == first.plan.duration
     # Every start refused: the unrefined plan stands, the reason naming each start.
     monkeypatch.undo()
     _spying_on_checks(monkeypatch, refuse=range(100))

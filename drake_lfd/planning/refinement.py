@@ -168,12 +168,11 @@ class RefinementOptions:
     clearance_samples: int = 15
     budget: SolverBudget = SolverBudget()
     limits: TrajectoryLimits | None = None
+    clearance_m: float = 0.03
+    repair_clearance_m: float = 0.02
     starts: tuple = ("plain motion", "composed", "lines")
-    polish: bool = False
-    every_round: bool = False
     energy_weight: float = 1e-3
     equal_duration: float = 0.005
-    program_limits: dict = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -537,17 +536,18 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     targets = [PoseTarget(float(s), X, options.con_position_tolerance_m, options.con_rotation_tolerance_rad,
                           pass_speed, q)
                for s, X, q in zip(fractions[1:-1], reference.critical_poses[1:-1], q_due)]
-    limits = options.limits or TrajectoryLimits.of_timing(result.task.timing or TimingLimits(), **options.program_limits)
+    limits = options.limits or TrajectoryLimits.of_timing(result.task.timing or TimingLimits(),
+                                                          clearance_m=options.clearance_m)
     count = options.num_control_points or 6 + 3 * (len(fractions) - 1)
     pins = list(zip(fractions[1:-1], q_due))
     lines = _through_critical_configurations(fractions, q_path[0], q_due, q_goal)
     solve_time = 0.0
 
-    def solve(guess, duration, program_bounds):
+    def solve(guess, duration, program_bounds, program_limits=None):
         nonlocal solve_time
         solved = optimize_joint_trajectory(
             scene, guess, guess_duration_s=duration, targets=targets, bounds=program_bounds,
-            clearance_samples=options.clearance_samples, limits=limits, budget=options.budget,
+            clearance_samples=options.clearance_samples, limits=program_limits or limits, budget=options.budget,
             energy_weight=options.energy_weight if method == "refine" else 0.0)
         solve_time += solved.solve_time_s
         work["evaluations"] += solved.evaluations
@@ -556,48 +556,45 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
 
     # Up to two rounds, the second with 1.5 times the control points (a spline too stiff
     # for the tube is a usual cause of an infeasible program; and a different program is
-    # a fresh chance where SNOPT ended in poor local solutions); in each, the program from
-    # every start of ``_starts``, and the shortest motion that passes every check, polished
-    # once (the program again from that motion). A fixed number of solves at most, each
-    # within the iteration budget, so the work stays bounded and the answer deterministic.
+    # a fresh chance where SNOPT ended in poor local solutions). In each, the program from
+    # every start of ``_starts`` (a motion through the clearance once more, with more
+    # clearance), then the choice among the motions that pass every check (``_choice``).
+    # A fixed number of solves at most, each within the iteration budget, so the work
+    # stays bounded and the answer deterministic.
     rounds = (count,) if options.num_control_points else (count, count + count // 2)
-    passed = []
+    repair_limits = dataclasses.replace(limits, clearance_m=limits.clearance_m + options.repair_clearance_m)
     for attempt in rounds:
-        failures = []
+        failures, passed = [], []
         line_guess = fit_bspline(*lines, attempt, rest_ends=True, pins=pins)
         composed = functools.partial(fit_bspline, s_path, q_path, attempt, rest_ends=True, pins=pins)
         for label, guess, duration, first in _starts(method, line_guess, composed, limits, solve, path_bounds,
                                                      options.starts):
             solved = first if guess is None else solve(guess, duration, bounds)
+            checked = None
+            if solved.trajectory is not None and not solved.safety_stopped:
+                work["budget_spent"] = solved.budget_spent
+                checked = _check_motion(result, checker, scene, solved, allowed, limits, options, method)
+                if method == "refine" and options.repair_clearance_m > 0 and \
+                        (checked.reason or "").startswith("check: collision"):
+                    # Through the clearance where the program does not look (between its
+                    # samples, or where the followed path lags the motion).
+                    repaired = solve(*_in_path_fraction(solved.trajectory), bounds, repair_limits)
+                    if repaired.trajectory is not None and not repaired.safety_stopped:
+                        again = _check_motion(result, checker, scene, repaired, allowed, limits, options, method)
+                        if again.reason is None:
+                            solved, checked = repaired, again
+                    elif repaired.safety_stopped:
+                        solved = repaired
             if solved.safety_stopped:
                 return dataclasses.replace(result, refinement=report("failed", f"error: {solved.status}", solve_time))
-            if solved.trajectory is None:
+            if checked is None:
                 failures.append((label, f"optimizer: {solved.status}", None))
-                continue
-            work["budget_spent"] = solved.budget_spent
-            checked = _check_motion(result, checker, scene, solved, allowed, limits, options, method)
-            if checked.reason is None:
-                passed.append((checked, solved))
-                continue
-            failures.append((label, _with_iterate(checked.reason, solved), checked))
-        if passed and not options.every_round:
-            break
-    if passed:
-        if True:
-            # The first, in the starts' order, of the motions whose program duration is
-            # within ``equal_duration`` of the shortest.
-            shortest = min(solved.duration for _, solved in passed)
-            checked, solved = next(pair for pair in passed
-                                   if pair[1].duration <= (1.0 + options.equal_duration) * shortest)
-            if options.polish:
-                polished = solve(*_in_path_fraction(solved.trajectory), bounds)
-                if polished.safety_stopped:
-                    return dataclasses.replace(result, refinement=report("failed", f"error: {polished.status}",
-                                                                         solve_time))
-                if polished.trajectory is not None:
-                    again = _check_motion(result, checker, scene, polished, allowed, limits, options, method)
-                    if again.reason is None and again.plan.duration < checked.plan.duration:
-                        checked, solved = again, polished
+            elif checked.reason is None:
+                passed.append((solved, checked))
+            else:
+                failures.append((label, _with_iterate(checked.reason, solved), checked))
+        if passed:
+            solved, checked = _choice(passed, options)
             work["budget_spent"] = solved.budget_spent
             return dataclasses.replace(result, timed=checked.plan, joint_path=checked.followed,
                                        refinement=report("refined", "", solve_time, checked.plan.duration,
@@ -610,6 +607,20 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
         return dataclasses.replace(result, refinement=report("failed", reason, solve_time))
     return dataclasses.replace(result, refinement=report("failed", reason, solve_time, checked.plan.duration,
                                                          checked.position, checked.rotation, checked.fractions))
+
+
+def _choice(passed: list, options: RefinementOptions) -> tuple:
+    """The motion the plan takes among ``passed`` (``(solved, checked)`` in the starts'
+    order, each passing every check): the first whose program duration is within
+    ``equal_duration`` of the shortest.
+
+    Not the shortest outright, nor by the retimed plan's duration: local solutions of
+    equal program duration (the same minimum reached along different shapes where the
+    duration does not bind them) are retimed differently by the slow passage of the
+    critical configurations, and which of them is the shortest flips with the last bits
+    of the plan; the starts' order does not."""
+    shortest = min(solved.duration for solved, _ in passed)
+    return next(pair for pair in passed if pair[0].duration <= (1.0 + options.equal_duration) * shortest)
 
 
 def _with_iterate(reason: str, solved) -> str:
