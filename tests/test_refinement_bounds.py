@@ -176,11 +176,12 @@ def test_plan_refine_never_reports_a_plan_that_breaks_a_path_constraint(tmp_path
 
 def test_a_refined_plan_keeps_a_tight_span_bound_or_the_composed_plan_stands(tmp_path):
     """A bound of 5 mm and 1 deg over the lift (con_6 -> con_7), where the constraint alone
-    would allow 3 deg, and 3 cm elsewhere: measured on the followed (commanded) motion
-    against the composed plan at matching path fractions; or the refinement failed and
-    the composed plan stands."""
+    would allow 3 deg: measured on the followed (commanded) motion, the lift within 5 mm
+    of the composed lift's path and within 1 deg of the composed rotation at the same path
+    fraction, the rest within the default tube; or the refinement failed and the composed
+    plan stands."""
     path = tmp_path / "tight.yaml"
-    path.write_text(TENDING.read_text() + "refinement:\n  max_deviation: {position_m: 0.03}\n  spans:\n"
+    path.write_text(TENDING.read_text() + "refinement:\n  spans:\n"
                     "    - {between: [6, 7], position_m: 0.005, rotation_deg: 1}\n")
     task = load_task(path)
     trial = draw_trial(task, 0)
@@ -200,8 +201,19 @@ def test_a_refined_plan_keeps_a_tight_span_bound_or_the_composed_plan_stands(tmp
     X = [kinematics.X_WE(q) for q in followed.q]
     due = [timed.times[i] for i in timed.critical_indices]
     lift = (followed.t >= due[5] - 1e-9) & (followed.t <= due[6] + 1e-9)
-    position, rotation = tube_deviation(composed.timed, s[lift], [x for x, w in zip(X, lift) if w])
-    assert position <= 0.005 and rotation <= math.radians(1.0)
+    assert lift.sum() > 10
+    poses = [x for x, w in zip(X, lift) if w]
+    first, last = composed.timed.critical_indices[5], composed.timed.critical_indices[6]
+    composed_lift = np.array([x.translation() for x in composed.timed.X_WE_list()[first:last + 1]])
+    assert max(_distance_to_polyline(x.translation(), composed_lift) for x in poses) <= 0.005
+    _, rotation = tube_deviation(composed.timed, s[lift], poses)
+    assert rotation <= math.radians(1.0)
     position, rotation = tube_deviation(composed.timed, s, X)
-    assert position <= 0.03 and rotation <= math.radians(30.0)
-    assert report.tube_max_position_m == pytest.approx(position, abs=1e-3)
+    assert position <= 0.15 and rotation <= math.radians(30.0)
+
+
+def _distance_to_polyline(p, points):
+    start, step = points[:-1], np.diff(points, axis=0)
+    u = np.clip(np.einsum("ij,ij->i", p - start, step) / np.maximum(np.einsum("ij,ij->i", step, step), 1e-300),
+                0.0, 1.0)
+    return float(np.min(np.linalg.norm(start + u[:, None] * step - p, axis=1)))

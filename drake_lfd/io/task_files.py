@@ -71,7 +71,10 @@ Values:
   30 deg); an entry of ``spans`` (``between: [j, k]`` as a path constraint's, and at least
   one of the two) replaces it from con_j to con_k, so a span may be held tighter or let
   wider. A path constraint bounds it besides, over its own spans: its ``max_deviation``
-  (the same two keys), or without one the rotation within its ``tolerance_deg``.
+  (the same two keys), or without one the rotation within its ``tolerance_deg``. The whole
+  task's position bound holds at matching path fractions; a span's own (from ``spans`` or a
+  path constraint) holds E within that distance of the composed span's path, wherever
+  along it (docs/task_files.rst, The refinement block).
 - Root keys starting with ``_`` are ignored (YAML anchors for reuse, as in Drake).
 
 Every problem is an :class:`~drake_lfd.core.errors.InputError` naming the file and the field

@@ -215,13 +215,18 @@ class PoseTarget:
 @dataclasses.dataclass(frozen=True)
 class PoseBound:
     """At path fraction ``s``: E within ``radius_m`` of ``p_W`` (None: free) and within
-    ``angle_rad`` of ``R_WE`` (None: free)."""
+    ``angle_rad`` of ``R_WE`` (None: free). With ``direction_W`` (a unit vector), E within
+    ``radius_m`` of the line through ``p_W`` along it instead (a square of that half
+    diagonal across the line), at most ``along_m`` from ``p_W`` along it: a bound on
+    where E goes that leaves free how far along the way it is at ``s``."""
 
     s: float
     p_W: np.ndarray | None = None
     radius_m: float | None = None
     R_WE: RotationMatrix | None = None
     angle_rad: float | None = None
+    direction_W: np.ndarray | None = None
+    along_m: float | None = None
 
 
 class OptimizationScene:
@@ -550,7 +555,8 @@ def _program_key(guess: BsplineTrajectory, guess_duration_s: float, targets: Seq
         fields += [target.s, target.X_WE, target.position_tolerance_m, target.rotation_tolerance_rad,
                    target.pass_speed_m_s, target.q_nominal]
     for bound in bounds:
-        fields += [bound.s, bound.p_W, bound.radius_m, bound.R_WE, bound.angle_rad]
+        fields += [bound.s, bound.p_W, bound.radius_m, bound.R_WE, bound.angle_rad, bound.direction_W,
+                   bound.along_m]
     fields += list(dataclasses.astuple(limits)) + list(dataclasses.astuple(budget))
     return _numbers(fields)
 
@@ -597,7 +603,15 @@ def _solve(scene: OptimizationScene, guess: BsplineTrajectory, guess_duration_s:
             _add_pass_speed_bound(trajopt, scene.translational_jacobian(target.q_nominal), target.s,
                                   target.pass_speed_m_s)
     for bound in bounds:
-        if bound.p_W is not None:
+        if bound.p_W is not None and bound.direction_W is not None:
+            # A frame on the line, its z along it: E in a box there.
+            X_WL = RigidTransform(RotationMatrix.MakeFromOneVector(np.asarray(bound.direction_W, dtype=float), 2),
+                                  np.asarray(bound.p_W, dtype=float))
+            half = bound.radius_m / math.sqrt(2.0)
+            trajopt.AddPathPositionConstraint(
+                PositionConstraint(plant, world, X_WL, np.array([-half, -half, -bound.along_m]),
+                                   np.array([half, half, bound.along_m]), frame_E, np.zeros(3), context), bound.s)
+        elif bound.p_W is not None:
             trajopt.AddPathPositionConstraint(
                 PointToPointDistanceConstraint(plant, world, np.asarray(bound.p_W, dtype=float), frame_E,
                                                np.zeros(3), 0.0, bound.radius_m, context), bound.s)
