@@ -240,14 +240,10 @@ class PathConstraintSpec:
 
 
 @dataclasses.dataclass
-class RefinementSpanSpec:
+class RefinementSpanSpec(DeviationSpec):
     """An entry of ``refinement.spans``: the bound from con_j to con_k."""
 
     between: list[int] = required(list)
-    position_m: Optional[float] = dataclasses.field(
-        default=None, metadata={"expected": "a number (metres), or absent"})
-    rotation_deg: Optional[float] = dataclasses.field(
-        default=None, metadata={"expected": "a number (degrees), or absent"})
 
 
 @dataclasses.dataclass

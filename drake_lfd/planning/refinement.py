@@ -6,29 +6,37 @@ joint path) and optimizes a joint trajectory around it (docs/method.rst, Refinem
 by trajectory optimization): each critical configuration is pinned at the path
 fraction where the composed plan reaches it (its configuration there, on the composed
 joint path, fixes the IK branch), and the motion must stay in a tube around the mapped
-demonstrations (E within
-``tube_position_m`` and ``tube_rotation_rad`` of the composed SE(3) path at the matching
-path fraction; within each span the fraction is matched by arc length), keep the task's
-path constraints, the joint limits, speed and acceleration bounds, the tool speed and the
+demonstrations (E within the task's bounds of the composed SE(3) path: by default
+``tube_position_m`` and ``tube_rotation_rad`` at the matching path fraction, within each
+span matched by arc length; the task file's ``refinement:`` block and its path
+constraints bound it span by span, :func:`allowed_deviations`), keep the task's path
+constraints, the joint limits, speed and acceleration bounds, the tool speed and the
 clearance (:mod:`drake_lfd.robot.trajectory_optimization`), in minimum time. The result
 is verified like any plan: sampled at the controller's period, timed as a
 :class:`~drake_lfd.core.timing.TimedPlan` (E's poses by forward kinematics, critical
 indices at the samples where each critical configuration is due) and followed by the
-:class:`~drake_lfd.robot.joint_path.JointPathChecker`; the path constraints and the
-tube are checked on the followed joint path. The tube program starts from the plain
-program's motion (the same program without the tube, from straight joint-space lines),
-and from the composed joint path where that start's motion fails a check
-(:func:`_starts`). When the optimizer fails or any check fails, the unrefined plan
-stands and the report says why. The solve is bounded by
-SNOPT's iteration counts (:class:`SolverBudget`), never by time, and the bounds are
-the task's ``timing:`` limits at its ``limit_fraction``: the same inputs give the same
-plan on any machine under any load.
+:class:`~drake_lfd.robot.joint_path.JointPathChecker` holding the task's path
+constraints (:mod:`drake_lfd.robot.path_constraints`, the measure the search holds
+composed plans to); the task's bounds are checked on the followed joint path, span by
+span. So a refined plan never breaks a path constraint or a bound: when the optimizer
+fails or any check fails, the composed plan (which the search checked) stands and the
+report says why.
+
+Which local solution SNOPT reaches depends on where it starts, and from one start on the
+last bits of the plan; so the tube program runs from several deterministic starts
+(:func:`_starts`) and the plan takes a fixed choice among the motions that pass
+(:func:`_choice`), with a small path-energy cost that makes the minimum of each start
+unique where the duration alone leaves the shape free. The solve is bounded by SNOPT's
+iteration counts (:class:`SolverBudget`) per solve and a fixed number of solves, never
+by time, and the bounds are the task's ``timing:`` limits at its ``limit_fraction``:
+the same inputs give the same plan on any machine under any load.
 
 :func:`plain_plan` is the peer without demonstrations: the same program and checks, from
-a straight joint-space line between the composed plan's start and goal configurations,
-with no tube.
+straight joint-space lines between the composed path's configurations at the critical
+configurations, with no tube and a duration cost alone.
 
-Not for: composing demonstrations (``planner.py``) or the Drake program itself
+Not for: composing demonstrations (``planner.py``), the path-constraint measure
+(``robot/path_constraints.py``) or the Drake program itself
 (``robot/trajectory_optimization.py``).
 """
 
@@ -44,7 +52,12 @@ from pydrake.math import BsplineBasis, RotationMatrix
 from pydrake.trajectories import BsplineTrajectory, PiecewisePose
 
 from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
-from drake_lfd.core.tasks import DeviationBound, RefinementBounds
+from drake_lfd.core.tasks import (
+    DEFAULT_REFINEMENT_POSITION_M,
+    DEFAULT_REFINEMENT_ROTATION_RAD,
+    DeviationBound,
+    RefinementBounds,
+)
 from drake_lfd.core.timing import TimedPlan, TimingLimits
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.robot.joint_path import JointPathChecker
@@ -83,7 +96,9 @@ class RefinementOptions:
     ----------
     tube_position_m, tube_rotation_rad : float
         The tube: E within this distance and angle of the composed path at the matching
-        path fraction (0.15 m, 30 deg), checked on the followed joint path.
+        path fraction (0.15 m, 30 deg), checked on the followed joint path, where the
+        task file does not bound it (its ``refinement:`` block and path constraints,
+        :func:`allowed_deviations`).
     tube_margin : float
         The program bounds the tube at this fraction of it (0.8): its samples leave
         room for the path between them and for the controller.
@@ -148,11 +163,33 @@ class RefinementOptions:
     limits : TrajectoryLimits, optional
         The program's bounds (None: the task's ``timing:`` block at its
         ``limit_fraction``, :meth:`TrajectoryLimits.of_timing`, so the refined motion
-        uses the same share of the limits as the composed plan's timing).
+        uses the same share of the limits as the composed plan's timing, with
+        ``clearance_m``).
+    clearance_m : float
+        The program's clearance when ``limits`` is None (3 cm; the check demands 1 cm on
+        the followed path, which lags the motion where it is fast, so a motion 2 cm
+        clear at the program's samples passed a shell within 1 cm on transferring).
+    repair_clearance_m : float
+        A tube program's motion that fails the check for a collision is solved once more
+        from itself with this much more clearance (2 cm; 0: never): otherwise whether a
+        start passes a shell by 9.9 or 10.1 mm decides, with the plan's last bits, which
+        start the plan takes.
+    starts : tuple of str
+        The tube program's starts, in order (``_starts``).
+    energy_weight : float
+        Weight of the path-energy cost beside the duration's in the tube program and
+        the plain program that starts it (1e-3, in seconds per rad^2 of the control
+        points' steps: a tie-breaker, not a trade). Without it the minimum-time program
+        leaves the shape free where the duration does not bind it, so starts reached
+        equal durations along shapes the slow passage of the critical configurations
+        retimes differently.
+    equal_duration : float
+        Program durations within this fraction of the shortest are equal for the choice
+        among starts (``_choice``; 0.005).
     """
 
-    tube_position_m: float = 0.15
-    tube_rotation_rad: float = math.radians(30.0)
+    tube_position_m: float = DEFAULT_REFINEMENT_POSITION_M
+    tube_rotation_rad: float = DEFAULT_REFINEMENT_ROTATION_RAD
     tube_margin: float = 0.8
     tube_samples: int = 15
     con_position_tolerance_m: float = 0.0007
@@ -206,9 +243,9 @@ class RefinementReport:
         Evaluations of the programs by SNOPT, all solves (the work done: the same on
         any machine, and the same when the scene remembered a solve).
     attempts : int
-        SNOPT solves: 2 (the plain program, then the tube program from its motion), 3
-        when the tube program also started from the composed path, up to 6 with a
-        second round (``plain``: 1 or 2).
+        SNOPT solves: the plain program, then the tube program from each start (one more
+        for each motion repaired for its clearance), twice that with a second round
+        (``plain``: 1 or 2).
     budget_spent : bool
         The motion is SNOPT's last iterate at its iteration limit (checked like a
         solution).

@@ -4,7 +4,9 @@
 ``KinematicTrajectoryOptimization`` (a clamped B-spline ``q(s)``, ``s`` in [0, 1], with a
 free duration ``T``; docs/method.rst, Refinement by trajectory optimization):
 
-- minimum duration (``AddDurationCost``), duration within bounds;
+- minimum duration (``AddDurationCost``), duration within bounds; optionally plus a small
+  path-energy cost (``AddPathEnergyCost``, ``energy_weight``), which makes the minimum unique
+  where the duration leaves the shape free;
 - joint position bounds: the UR5e's limits, narrowed for the elbow (q3) and the wrist
   (q5) to the singularity-free interval (``|sin q| >= margin``) the initial guess lies
   in; bounds on the control points hold on the whole path (convex hull);
@@ -242,7 +244,8 @@ class OptimizationScene:
         docstring); ``solutions.clear()`` forgets them.
     """
 
-    #: Programs remembered per scene (a plan solves at most six).
+    #: Programs remembered per scene (a refinement solves at most 14, two rounds of the plain
+    #: program and three starts, each repaired once).
     REMEMBERED_SOLUTIONS = 16
 
     def __init__(self, workcell: Workcell):
@@ -507,6 +510,8 @@ def optimize_joint_trajectory(
         ``Time limit`` option, so the safety stop is an exception raised in a
         visualization callback (called at each evaluation of the program), which Drake
         turns into SNOPT's "terminated during function evaluation".
+    energy_weight : float
+        Weight of ``AddPathEnergyCost`` beside the duration's (0: the duration alone).
 
     A program this scene solved before (the same inputs to the bit) is answered from
     ``scene.solutions``: the same answer, ``evaluations`` included (SNOPT's work for the
