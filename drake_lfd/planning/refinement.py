@@ -174,8 +174,9 @@ class RefinementOptions:
         from itself with this much more clearance (2 cm; 0: never): otherwise whether a
         start passes a shell by 9.9 or 10.1 mm decides, with the plan's last bits, which
         start the plan takes.
-    starts : tuple of str
-        The tube program's starts, in order (``_starts``).
+    starts, fallback_starts : tuple of str
+        The tube program's starts, in order, and those tried only when none of them gives
+        a motion that passes (``_starts``).
     energy_weight : float
         Weight of the path-energy cost beside the duration's in the tube program and
         the plain program that starts it (1e-3, in seconds per rad^2 of the control
@@ -207,7 +208,8 @@ class RefinementOptions:
     limits: TrajectoryLimits | None = None
     clearance_m: float = 0.03
     repair_clearance_m: float = 0.02
-    starts: tuple = ("plain motion", "composed", "lines")
+    starts: tuple = ("plain motion", "lines")
+    fallback_starts: tuple = ("composed",)
     energy_weight: float = 1e-3
     equal_duration: float = 0.005
 
@@ -630,7 +632,7 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
         line_guess = fit_bspline(*lines, attempt, rest_ends=True, pins=pins)
         composed = functools.partial(fit_bspline, s_path, q_path, attempt, rest_ends=True, pins=pins)
         for label, guess, duration, first in _starts(method, line_guess, composed, limits, solve, path_bounds,
-                                                     options.starts):
+                                                     options.starts, options.fallback_starts, passed):
             solved = first if guess is None else solve(guess, duration, bounds)
             checked = None
             if solved.trajectory is not None and not solved.safety_stopped:
@@ -697,32 +699,36 @@ def _with_iterate(reason: str, solved) -> str:
 # How a failure reason names the start it comes from (``_starts``).
 _START_NAMES = {"plain motion": "from the plain program's motion", "composed": "from the composed path",
                 "lines": "from straight joint-space lines"}
-#: The starts of the tube program (``_starts``), in the order they are tried.
+#: Every start the tube program knows (``_starts``).
 STARTS = tuple(_START_NAMES)
 
 
 def _starts(method: str, line_guess, composed_guess, limits: TrajectoryLimits, solve, path_bounds,
-            starts=STARTS):
+            starts=("plain motion", "lines"), fallback=("composed",), passed=()):
     """The program's starts, in order, as ``(label, guess, duration, None)``, or
     ``(label, None, None, answer)`` when the solve that makes a start gave no motion
-    (``answer``: that solve's).
+    (``answer``: that solve's). Lazy: a start is made when the consumer asks for it.
 
     ``plain``: ``line_guess`` (straight joint-space lines through the composed path's
-    configurations at the critical configurations). ``refine``: each of ``starts``:
-    ``plain motion``, the plain program's motion (the program without the tube, the
-    same limits, targets and path constraints, solved from ``line_guess`` with
-    ``solve(guess, duration, path_bounds)``); ``composed``, the composed joint path
-    (``composed_guess()``); ``lines``, ``line_guess`` itself. Which local solution SNOPT
-    reaches from one start moves with the last bits of the plan (on transferring, seed
-    11, a perturbation of 1e-9 rad turned the plain motion's 3.50 s into a refused motion
-    and the plan fell to the composed path's 3.95 s); the shortest of several starts
-    that pass the checks moves far less. From the composed path alone SNOPT lands in
-    poor local solutions where the demonstrations detour (assembling: 4.60 s against
-    3.66 s from the plain motion)."""
+    configurations at the critical configurations). ``refine``: each of ``starts``, then
+    each of ``fallback`` while ``passed`` (the consumer's list of motions that passed the
+    checks) is empty. ``plain motion``: the plain program's motion (the program without
+    the tube, the same limits, targets and path constraints, solved from ``line_guess``
+    with ``solve(guess, duration, path_bounds)``); ``lines``: ``line_guess`` itself;
+    ``composed``: the composed joint path (``composed_guess()``). Which local solution
+    SNOPT reaches from one start moves with the last bits of the plan (on transferring,
+    seed 11, a perturbation of 1e-9 rad turned the plain motion's 3.50 s into a refused
+    motion and the plan fell to the composed path's 3.95 s); the choice among several
+    starts moves far less (``_choice``). From the composed path SNOPT lands in poor local
+    solutions where the demonstrations detour (assembling: 4.60 s against 3.66 s from the
+    plain motion), and over the paper trials it was never the start chosen when another
+    passed: it is the fallback, where neither of the others gives a motion that passes."""
     if method == "plain":
         yield "plain", line_guess, _duration_guess(line_guess, limits), None
         return
-    for label in starts:
+    for label in tuple(starts) + tuple(fallback):
+        if label in fallback and label not in starts and passed:
+            return
         if label == "plain motion":
             plain = solve(line_guess, _duration_guess(line_guess, limits), path_bounds)
             if plain.trajectory is None:
