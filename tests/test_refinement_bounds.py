@@ -217,3 +217,36 @@ def _distance_to_polyline(p, points):
     u = np.clip(np.einsum("ij,ij->i", p - start, step) / np.maximum(np.einsum("ij,ij->i", step, step), 1e-300),
                 0.0, 1.0)
     return float(np.min(np.linalg.norm(start + u[:, None] * step - p, axis=1)))
+
+
+def test_a_refined_motion_that_breaks_a_path_constraint_is_refused(tmp_path, monkeypatch):
+    """The program made to turn the part 8 deg in the middle of the lift (its own path
+    constraint bounds replaced by that; the constraint lets the refinement turn it as far
+    as it likes from the composed path): every motion the program gives breaks the
+    constraint, the check refuses each for it, and the composed plan stands."""
+    import drake_lfd.planning.refinement as refinement_module
+    from pydrake.math import RotationMatrix
+    from drake_lfd.robot.trajectory_optimization import PoseBound
+
+    path = tmp_path / "free.yaml"
+    path.write_text(TENDING.read_text().replace("tolerance_deg: 3}",
+                                                "tolerance_deg: 3, max_deviation: {rotation_deg: 180}}"))
+    task = load_task(path)
+    trial = draw_trial(task, 0)
+    workcell = Workcell.of(trial)
+    checker = joint_path_checker(workcell, task.simulation)
+    composed = plan_composition(trial, library_features(Library.open("paper5")), PlanningOptions(),
+                                floor_z=workcell.planner_floor, checker=checker)
+    (constraint,) = task.path_constraints
+
+    def turned(result, fractions, options):
+        R = RotationMatrix(constraint_rotation(constraint)).multiply(RotationMatrix.MakeXRotation(math.radians(8)))
+        return [PoseBound(float(0.5 * (fractions[5] + fractions[6])), R_WE=R, angle_rad=math.radians(1))]
+
+    monkeypatch.setattr(refinement_module, "_path_constraint_bounds", turned)
+    result = refine_plan(composed, checker, scene=OptimizationScene(workcell))
+    report = result.refinement
+    assert report.status == "failed"
+    assert result.timed is composed.timed and result.joint_path is composed.joint_path
+    assert report.reason.startswith("check: path_constraint: the tool turns ")
+    assert "path constraint con_6..con_7 allows a plan 1.5 deg" in report.reason
