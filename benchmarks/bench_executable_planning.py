@@ -37,7 +37,7 @@ from drake_lfd.io.task_files import load_task
 from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.planner import plan_composition
 
-# The paper's cost, without and with the check (the figures in README.md).
+# The paper's cost, without and with the check (figures in benchmarks/RESULTS.md).
 UNCHECKED = PlanningOptions.paper_baseline()
 CHECKED = PlanningOptions(cost="paper")
 from drake_lfd.planning.random_tasks import chained_task

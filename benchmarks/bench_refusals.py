@@ -1,22 +1,27 @@
 """Refusals: how long ``plan`` takes to say no, and whether it says each reason once. Printed, never asserted.
 
-Run: ``python benchmarks/bench_refusals.py [--pick-and-place 10] [--seed 0] [--after-only]``.
+Run: ``python benchmarks/bench_refusals.py [--pick-and-place 10] [--near-base 100] [--seed 0] [--after-only]``.
 
 Tasks: the shelf pick-and-place task of ``tests/data/shelf_pick_place.yaml`` (a cup
 carried over a boxed obstacle with a shell, ``paper5``'s tool frame) with its robot base
 on a 4 x 4 grid of placements 10 cm apart around the file's, and random pick-and-place
 work cells (:mod:`drake_lfd.experiments.pick_and_place`) with the base moved by up to
-30 cm (seeded), so that some are out of reach, singular or crowded by their shell.
+30 cm (seeded), so that some are out of reach, singular or crowded by their shell, and
+``--near-base`` random pick-and-place tasks with a second safety shell standing beside
+the robot's base (``shell_near_base``: 12-30 cm from the base axis, seeded), where the
+shoulder and upper arm pass near a shell as shoulder_pan turns.
 Each is planned as ``plan`` plans it (its work cell's joint-space checker, ``--cost
 fidelity``, the exact planner, trial seed 0), timed from the work cell's construction
 to the result, in one process.
 
 Each task is planned twice in the same run: ``after``, as the planner does now, and
-``before``, with the refusal pre-check (``planning/refusals.py``) and the merging of
-repeated reasons switched off, which is the search as it was. Printed per task: status,
+``before``, with the refusal pre-check (``planning/refusals.py``), the ruling out of
+compositions that repeat a measured pan blocker and the merging of repeated reasons
+switched off, which is the search as it was. Printed per task: status,
 time and reason lines of both; for a task that plans, whether both give the same
 composition and joint path (``same``). Then the median and largest refusal times, how
-many refusals repeat a reason line, and whether every planned task is unchanged.
+many refusals repeat a reason line, whether every planned task is unchanged, and the
+slowest refusal against the median planned task (the target: at most twice).
 Absolute times depend on the machine's load (``uptime`` is printed); the before/after
 ratio is measured under the same load.
 """
@@ -42,7 +47,7 @@ from drake_lfd.robot.workcell import Workcell
 SHELF = Path(__file__).parents[1] / "tests" / "data" / "shelf_pick_place.yaml"
 
 
-def tasks(pick_and_place: int, seed: int) -> list[tuple[str, str]]:
+def tasks(pick_and_place: int, seed: int, near_base: int = 0) -> list[tuple[str, str]]:
     """(label, task file text) of every benchmark task."""
     shelf = SHELF.read_text()
     out = []
@@ -56,16 +61,20 @@ def tasks(pick_and_place: int, seed: int) -> list[tuple[str, str]]:
         text = pick_and_place_yaml(seed * 1000 + number).replace(
             "X_WB: {p: [0, 0, 0]", f"X_WB: {{p: [{x:.3f}, {y:.3f}, 0]")
         out.append((f"pick_and_place_{seed * 1000 + number} base ({x:+.2f}, {y:+.2f})", text))
+    for number in range(near_base):
+        task_seed = seed * 1000 + number
+        out.append((f"near_base_{task_seed}", pick_and_place_yaml(task_seed, shell_near_base=True)))
     return out
 
 
 def plan_once(text: str, features, before: bool):
     """(result, seconds) of planning the task as ``plan`` does; ``before``: without the
     pre-check and the merging of reasons."""
-    saved = planner_module.blocked_configurations, planner_module.distinct_reasons
+    saved = planner_module.blocked_configurations, planner_module.distinct_reasons, planner_module.RepeatedPanBlockers
     if before:
         planner_module.blocked_configurations = lambda problem, checker: []
         planner_module.distinct_reasons = tuple
+        planner_module.RepeatedPanBlockers = lambda checker: None
     try:
         task = task_from_spec(task_spec_from_text(text), file="bench")
         trial = draw_trial(task, 0)
@@ -76,7 +85,8 @@ def plan_once(text: str, features, before: bool):
                                                  floor_z=workcell.planner_floor, checker=checker)
         return result, time.perf_counter() - start
     finally:
-        planner_module.blocked_configurations, planner_module.distinct_reasons = saved
+        (planner_module.blocked_configurations, planner_module.distinct_reasons,
+         planner_module.RepeatedPanBlockers) = saved
 
 
 def reason_lines(result) -> list[str]:
@@ -91,13 +101,16 @@ def same_plan(a, b) -> bool:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pick-and-place", type=int, default=10)
+    parser.add_argument("--near-base", type=int, default=100,
+                        help="random pick-and-place tasks with a shell beside the base")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--after-only", action="store_true", help="skip the 'before' runs (minutes)")
     args = parser.parse_args()
     features = library_features(Library.open("paper5"))
     print(f"load before: {os.getloadavg()[0]:.2f}")
     refusal_times, before_times, repeated, planned_same, planned = [], [], 0, 0, 0
-    for label, text in tasks(args.pick_and_place, args.seed):
+    planned_times, slowest = [], ("", 0.0)
+    for label, text in tasks(args.pick_and_place, args.seed, args.near_base):
         after, after_s = plan_once(text, features, before=False)
         lines = reason_lines(after)
         line = f"{label:<40} {after.status:<19} {after_s:6.2f} s, {len(lines)} reason line(s)"
@@ -110,8 +123,11 @@ def main() -> None:
                 line += f" | same: {'yes' if same_plan(after, before) else 'NO'}"
             elif after.status == "no_executable_plan":
                 before_times.append(before_s)
+        if after.planned:
+            planned_times.append(after_s)
         if after.status == "no_executable_plan":
             refusal_times.append(after_s)
+            slowest = max(slowest, (label, after_s), key=lambda item: item[1])
             repeated += len(lines) != len(set(lines))
         print(line, flush=True)
         for reason in lines:
@@ -125,6 +141,10 @@ def main() -> None:
         print(f"before (same tasks, same run): median {np.median(before_times):.2f} s, max {max(before_times):.2f} s")
     if not args.after_only:
         print(f"planned tasks: {planned}, same composition and joint path before and after: {planned_same}")
+    if refusal_times and planned_times:
+        median = float(np.median(planned_times))
+        print(f"slowest refusal {slowest[1]:.2f} s ({slowest[0]}) against the median planned task {median:.2f} s "
+              f"({len(planned_times)} planned): {slowest[1] / median:.1f} times (target: at most 2)")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """Fuzzed task files and joint logs through the real command line: no traceback, no hang.
 
-The cases are the seeded mutations of :mod:`drake_lfd.experiments.fuzzing` (task files
+The cases are the seeded mutations of ``tests/fuzzing.py`` (task files
 for ``drake-lfd plan TASK --library paper5 --json OUT``, joint logs for ``drake-lfd
 library add LIB LOG --name NAME`` into a fresh copy of ``paper5`` or a new library
 directory). They run in ``--workers`` long-lived worker processes, each calling
@@ -54,7 +54,9 @@ import threading
 import time
 from pathlib import Path
 
-from drake_lfd.experiments.fuzzing import FuzzCase, log_cases, non_finite_json_tokens, task_cases
+# The generators are test tooling: they live beside their seeded sample in tests/.
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+from fuzzing import FuzzCase, log_cases, non_finite_json_tokens, task_cases  # noqa: E402
 
 __all__ = ["Worker", "library_snapshot", "judge", "run_cases", "main"]
 
@@ -74,6 +76,7 @@ os.dup2(devnull, 1)
 from drake_lfd.cli import main
 from drake_lfd.cli.app import build_parser
 build_parser()
+import drake_lfd.cli.library_actions, drake_lfd.experiments.planning_api, drake_lfd.io.task_files  # what the commands load
 answer.write("ready\n"); answer.flush()
 for line in sys.stdin:
     request = json.loads(line)

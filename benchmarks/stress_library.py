@@ -57,7 +57,7 @@ IDENTITY = ["--tool0-E-p", "0", "0", "0", "--tool0-E-euler-zyx", "0", "0", "0"]
 # for), answering with a JSON line of exit code, stdout and stderr.
 WRITER = r"""
 import contextlib, io, json, os, sys, time
-import drake_lfd.cli.library, drake_lfd.io.library
+import drake_lfd.cli.library_actions, drake_lfd.io.library
 from drake_lfd.cli import main
 from drake_lfd.cli.app import build_parser
 build_parser()

@@ -313,3 +313,34 @@ def test_progress_bar_redraws_on_a_terminal_and_is_quiet_otherwise():
     assert pipe.getvalue() == ""
     assert terminal.getvalue().startswith("\radding [") and "3/3" in terminal.getvalue()
     assert terminal.getvalue().endswith("\n")
+
+
+def test_a_bulk_add_killed_while_creating_its_library_leaves_no_library(tmp_path, capsys):
+    """The new library and its first batch are one step: killed after the logs and before
+    the manifest (here: the process ends hard where the manifest would be written), the
+    directory is no library, and the next bulk add there creates it whole."""
+    import subprocess
+    import sys
+
+    from cli_subprocess import cli_env
+    from drake_lfd.io.library import Library, is_unused_library_directory
+
+    logs = write_logs(tmp_path / "logs", ["one", "two", "three"])
+    root = tmp_path / "new"
+    killed = subprocess.run(
+        [sys.executable, "-c",
+         "import os, sys\n"
+         "import drake_lfd.io.library as library\n"
+         "library.write_manifest = lambda *args, **kwargs: os._exit(9)\n"
+         "from drake_lfd.cli import main\n"
+         "sys.exit(main(sys.argv[1:]))\n",
+         "library", "add", str(root), str(logs), *IDENTITY],
+        env=cli_env(), capture_output=True, text=True)
+    assert killed.returncode == 9
+    assert list((root / "demos").iterdir())  # the logs were written, the manifest not
+    assert not (root / "library.json").exists() and is_unused_library_directory(root)
+    assert main(["library", "show", str(root)]) == 2
+    capsys.readouterr()
+    assert main(["library", "add", str(root), str(logs), *IDENTITY]) == 0
+    assert Library.open(root).names == ("one", "three", "two")
+    capsys.readouterr()

@@ -16,7 +16,7 @@ import pytest
 
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.tasks import angle_grid_count
-from drake_lfd.experiments.fuzzing import (
+from fuzzing import (  # tests/fuzzing.py, the generators
     LOG_MUTATIONS,
     TASK_MUTATIONS,
     log_cases,

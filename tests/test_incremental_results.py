@@ -69,3 +69,30 @@ def test_json_lines_are_strict_whole_and_beside_the_json(tmp_path):
         file.write('{"trial": 3, "t"')
     assert [r["trial"] for r in read_json_lines(path)] == [1, 2]
     os.remove(path)
+
+
+def test_a_trial_printed_as_finished_is_on_disk_when_the_interrupt_comes_during_its_write(tmp_path, monkeypatch,
+                                                                                         capsys):
+    """Ctrl-C while the second trial's record is being written: the lines printed on the
+    way out are those of the trials on disk, not one more."""
+    import drake_lfd.cli.simulate as simulate_module
+    from drake_lfd.cli import main
+
+    out = tmp_path / "run.json"
+    original = JsonLinesFile.append
+    calls = []
+
+    def interrupted(self, record):
+        calls.append(record)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return original(self, record)
+
+    monkeypatch.setattr(simulate_module.JsonLinesFile, "append", interrupted)
+    status = main(["simulate", str(scenarios_directory() / "transferring.yaml"), "--library", "paper5",
+                   "--trials", "3", "--json", str(out)])
+    captured = capsys.readouterr()
+    assert status == 1 and captured.err.splitlines()[-1] == "drake-lfd simulate: interrupted"
+    printed = [line for line in captured.out.splitlines() if line.startswith("trial ")]
+    on_disk = read_json_lines(json_lines_path_for(out))
+    assert len(on_disk) == 1 and [line.split(":")[0] for line in printed] == ["trial 1 (seed 0)"]

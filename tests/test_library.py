@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw
 
+import drake_lfd.core.resources as resources
 import drake_lfd.io.library as mut
 from drake_lfd.core.demonstrations import Demonstration
 from drake_lfd.robot.kinematics import dual_quaternions_from_demonstration
@@ -343,7 +344,9 @@ def test_bundled_library_by_name_is_read_only(library, tmp_path, monkeypatch):
     bundled = tmp_path / "bundled"
     bundled.mkdir()
     os.replace(tmp_path / "lib", bundled / "mine")
-    monkeypatch.setattr(mut, "bundled_library_directories", lambda: (tmp_path / "nowhere", bundled))
+    folders = lambda: (tmp_path / "nowhere", bundled)  # noqa: E731
+    monkeypatch.setattr(mut, "bundled_library_directories", folders)  # where Library.open looks
+    monkeypatch.setattr(resources, "bundled_library_directories", folders)  # where the names are listed
     monkeypatch.chdir(tmp_path)
     assert mut.bundled_library_names() == ["mine"]
     dut = mut.Library.open("mine")

@@ -93,18 +93,61 @@ def test_distinct_reasons_merge_what_differs_only_in_numbers():
     assert "[blocks 2 alternatives]" in merged[0].describe() and "blocks" not in merged[2].describe()
 
 
-def test_the_pan_sweep_takes_the_better_way_round():
+class _PanOnlyScene:
+    """A scene whose one pan-only shape's clearance is ``clearance(pan)`` (and that counts
+    the measurements asked of it)."""
+
+    def __init__(self, clearance):
+        self.clearance, self.measured = clearance, 0
+
+    def signed_distances(self, q):
+        self.measured += 1
+        return np.array([[self.clearance(float(q[0]) % (2 * np.pi))]])
+
+
+def _sweeps(clearance, lipschitz=0.3):
     pans = np.linspace(0.0, 2 * np.pi, 360, endpoint=False)
-    least = np.full(360, 0.1)
-    least[90] = 0.005  # a pan-only shape near a shell at 90 deg
-    a, b = np.radians([0.0, 10.0]), np.radians([180.0])
-    worst = mut._sweep_minimum(least, pans, a, b)
-    assert worst.shape == (2, 1)
-    np.testing.assert_allclose(worst, 0.1)  # the way round through 270 deg is clear
-    least[270] = 0.002  # blocked both ways
-    np.testing.assert_allclose(mut._sweep_minimum(least, pans, a, b), 0.005)
-    # A pan at its own end is the configuration's business, not the sweep's.
-    np.testing.assert_allclose(mut._sweep_minimum(least, pans, np.radians([90.0]), np.radians([100.0])), 0.1)
+    scene = _PanOnlyScene(clearance)
+    least = np.array([clearance(p) for p in pans])
+    return mut._PanClearance(scene, np.zeros(6), np.array([0]), pans, least, lipschitz, 0.01), scene
+
+
+def _dip(centre_deg, least_m, slope=0.3):
+    """A V-shaped clearance (Lipschitz ``slope``) with its least ``least_m`` at ``centre_deg``."""
+    centre = np.radians(centre_deg)
+    return lambda pan: least_m + slope * abs((pan - centre + np.pi) % (2 * np.pi) - np.pi)
+
+
+def test_a_sweep_passing_within_a_hair_between_grid_pans_is_blocked():
+    """9.96 mm at 90.5 deg, between two grid pans where the shape is 12.6 mm away: the
+    grid alone would call it clear; the exact sweep finds the shortfall the follow finds."""
+    dip = _dip(90.5, 0.00996)
+    assert min(dip(p) for p in np.linspace(0.0, 2 * np.pi, 360, endpoint=False)) > 0.0125
+    sweeps, scene = _sweeps(dip)
+    (least, pan), blocked = sweeps.arc(np.radians(0.0), np.radians(180.0))
+    assert blocked and least < 0.01 and abs(np.degrees(pan) - 90.5) < 0.01
+    (least, _), blocked = sweeps.arc(np.radians(180.0), np.radians(0.0))  # the other way round, by 270 deg
+    assert not blocked and least >= 0.01
+    # Only the cells the bound cannot clear were measured, not the whole circle again.
+    assert scene.measured < 40
+
+
+def test_the_sweep_takes_the_better_way_round_and_proves_a_clear_one():
+    two = lambda pan: min(_dip(90.5, 0.00996)(pan), _dip(270.0, 0.002)(pan))
+    sweeps, _ = _sweeps(two)
+    starts, ends = [np.radians([0.0, -1.0, 1.0, 0, 1.0, 0])], [np.radians([180.0, -1.0, 1.0, 0, 1.0, 0])]
+    least, pan = mut._closest_blocked_sweep(sweeps, starts, ends)
+    assert least == pytest.approx(0.00996, abs=1e-6)  # the way by 90 deg comes closer to passing
+    # A clearance that dips to 10.01 mm between grid pans is proven clear, not refused.
+    sweeps, _ = _sweeps(lambda pan: min(_dip(90.5, 0.01001)(pan), _dip(270.0, 0.002)(pan)))
+    assert mut._closest_blocked_sweep(sweeps, starts, ends) is None
+    # Within a grid cell or a few (ends clear, as a branch's pan is): only the pans between count.
+    sweeps, _ = _sweeps(_dip(95.3, 0.002))
+    assert sweeps.arc(np.radians(90.0), np.radians(100.0))[1]
+    assert sweeps.arc(np.radians(93.5), np.radians(97.0))[1]
+    assert not sweeps.arc(np.radians(97.0), np.radians(99.0))[1]
+    assert not sweeps.arc(np.radians(80.0), np.radians(93.5))[1]
+    assert not sweeps.arc(np.radians(97.0), np.radians(97.5))[1]
 
 
 def test_a_configuration_only_other_branches_reach_is_refused_at_once():
@@ -128,3 +171,49 @@ def test_a_branch_is_the_side_of_each_singularity():
     assert mut.branch_signature(flipped)[0] == -1
     turned = q + 2 * np.pi * np.array([1, 0, 1, 1, 1, 1])  # windings change no branch
     assert mut.branch_signature(turned) == mut.branch_signature(q)
+
+
+def _plan_near_base(seed, *, repeats=True):
+    """Plans pick-and-place task ``seed`` with a shell beside the base as ``plan`` does;
+    returns (result, follows)."""
+    import drake_lfd.planning.planner as planner_module
+    from drake_lfd.experiments.pick_and_place import pick_and_place_yaml
+    from drake_lfd.planning.options import PlanningOptions
+    from drake_lfd.robot.joint_path import JointPathChecker
+    from drake_lfd.robot.workcell import Workcell
+
+    task = task_from_spec(task_spec_from_text(pick_and_place_yaml(seed, shell_near_base=True)), file="near_base")
+    trial = draw_trial(task, 0)
+    workcell = Workcell.of(trial)
+    checker = joint_path_checker(workcell, task.simulation)
+    follows = []
+    original = JointPathChecker.follow
+
+    def counted(self, *args, **kwargs):
+        follows.append(1)
+        return original(self, *args, **kwargs)
+
+    saved = planner_module.RepeatedPanBlockers
+    try:
+        JointPathChecker.follow = counted
+        if not repeats:
+            planner_module.RepeatedPanBlockers = lambda checker: None
+        result = planner_module.plan_composition(trial, library_features(Library.open("paper5")), PlanningOptions(),
+                                                 floor_z=workcell.planner_floor, checker=checker)
+    finally:
+        JointPathChecker.follow = original
+        planner_module.RepeatedPanBlockers = saved
+    return result, len(follows)
+
+
+def test_a_composition_repeating_a_measured_pan_blocker_is_ruled_out_unfollowed():
+    """Near-base task 41: the shoulder_lift housing (its clearance depends on shoulder_pan
+    alone) passes 9.4 mm from the shell on the way round every composition takes from
+    con_2 to con_3; the way round the other side is clear, so the pre-check cannot refuse.
+    Once a follow has measured that pan, compositions whose poses turn through it are
+    ruled out unfollowed: fewer follows, the same refusal."""
+    result, follows = _plan_near_base(41)
+    plain, plain_follows = _plan_near_base(41, repeats=False)
+    assert result.status == plain.status == "no_executable_plan"
+    assert follows < plain_follows
+    assert any("shoulder_lift_housing" in s.detail and s.con_from == 2 for s in result.infeasible)

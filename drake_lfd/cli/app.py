@@ -15,7 +15,6 @@ quietly.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import errno
 import importlib
 import os
@@ -37,8 +36,11 @@ USER_PATH_ERRNOS = frozenset({
 # The temporary file of an atomic write (io/atomic_files.py): ".NAME.RANDOM.tmp".
 _TEMPORARY_NAME = re.compile(r"^\.(?P<name>.+)\.[A-Za-z0-9_]+\.tmp$")
 
-# Modules that each add one subcommand, in the order --help lists them. A module that
-# is missing (a later issue not yet shipped) is simply skipped.
+# Modules that each add one subcommand, in the order --help lists them. Each is plain
+# Python at import (argparse, the standard library, drake_lfd's light modules), so
+# --version, --help and a bad flag answer before Drake is imported; a command imports
+# its heavy modules in its run function, once its input has been checked. A module that
+# cannot be imported is an error of the installation, raised as it is.
 _COMMAND_MODULES = (
     "drake_lfd.cli.record",
     "drake_lfd.cli.library",
@@ -88,13 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="show the Python traceback of an internal error")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for module_name in _COMMAND_MODULES:
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as error:
-            if error.name == module_name:
-                continue
-            raise
-        module.add_parser(subparsers)
+        importlib.import_module(module_name).add_parser(subparsers)
     for command_parser in _parsers_of(parser):  # every command's --help shows the defaults
         command_parser.formatter_class = HelpFormatter
         if command_parser is not parser and "--debug" not in command_parser._option_string_actions:
@@ -145,27 +141,6 @@ def _interrupted(command: str, argv) -> int:
 
 def _raise_interrupt(signum, frame):
     raise KeyboardInterrupt
-
-
-@contextlib.contextmanager
-def _interrupts_deferred():
-    """Ctrl-C and SIGTERM wait until the block is done, then interrupt. For the imports of
-    start-up: an interrupt inside pydrake's native initialisation makes Drake log a
-    40-line stack of its own before Python sees it."""
-    received = []
-    try:
-        previous = {signum: signal.signal(signum, lambda number, frame: received.append(number))
-                    for signum in (signal.SIGINT, signal.SIGTERM)}
-    except (ValueError, OSError):  # not the main thread: nothing to defer
-        yield
-        return
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-    if received:
-        raise KeyboardInterrupt
 
 
 def _ignore_further_interrupts() -> None:
@@ -227,8 +202,7 @@ def _run(argv: list[str] | None) -> int:
     command = "drake-lfd"
     debug = "--debug" in (sys.argv[1:] if argv is None else argv)
     try:
-        with _interrupts_deferred():  # native imports (pydrake) must not be cut half-way
-            parser = build_parser()
+        parser = build_parser()  # plain Python: each command loads Drake once its input is checked
         args = parser.parse_args(argv)
         debug = getattr(args, "debug", False)
         if not getattr(args, "func", None):

@@ -22,7 +22,7 @@ __all__ = [
 
 def library_help(what: str = "library directory") -> str:
     """Help text of a ``--library LIB`` option, naming the bundled libraries."""
-    from drake_lfd.io.library import bundled_library_names
+    from drake_lfd.core.resources import bundled_library_names
 
     names = ", ".join(bundled_library_names()) or "none installed"
     return f"{what}, or the name of a bundled library ({names})"

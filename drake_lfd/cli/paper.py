@@ -7,7 +7,8 @@ kept in ``DIR/trials.jsonl`` as it finishes (:mod:`drake_lfd.experiments.paper`)
 from __future__ import annotations
 
 from drake_lfd.cli.argument_checks import prepare_output, require_at_least, require_seed
-from drake_lfd.cli.sweep import add_worker_arguments, workers_of
+from drake_lfd.cli.shared_options import workers_of, workers_parent
+from drake_lfd.cli.startup import interrupts_deferred
 
 __all__ = ['add_parser', 'run']
 
@@ -15,6 +16,7 @@ __all__ = ['add_parser', 'run']
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "paper",
+        parents=[workers_parent()],  # the closed-loop trials only; the training stays in this process
         help="reproduce the paper's Section 6 (training, three tasks, a request) with a report",
         description=(
             "Train on 20 random tasks, run the transferring, filling-and-pouring and assembling "
@@ -30,19 +32,18 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--refine", action="store_true",
                         help="refine every closed-loop trial's plan by trajectory optimization "
                              "(docs/method.rst, Refinement by trajectory optimization) (default: off)")
-    add_worker_arguments(parser)  # the closed-loop trials only; the training stays in this process
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
     import sys
 
-    from drake_lfd.experiments.paper import PAPER_OPTIONS, run_paper
-
     require_at_least(args.trials, 1, "--trials")
     require_seed(args.seed)
     workers = workers_of(args, args.trials)
     out = prepare_output(args.out, "--out", folder=True)
+    with interrupts_deferred():
+        from drake_lfd.experiments.paper import PAPER_OPTIONS, run_paper
 
     def log(line):
         print(line, file=sys.stderr, flush=True)

@@ -10,50 +10,26 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from drake_lfd.cli.argument_checks import library_help, prepare_output, require_seed
-from drake_lfd.io.strict_json import write_json
+from drake_lfd.cli.argument_checks import prepare_output, require_seed
+from drake_lfd.cli.shared_options import planning_parent
+from drake_lfd.cli.startup import interrupts_deferred
 from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, EXIT_NO_EXECUTABLE_PLAN, InputError
-from drake_lfd.core.fidelity import COST_MODES
-from drake_lfd.planning.options import PLANNERS
+from drake_lfd.io.task_schema import check_task_file
 
 
-__all__ = ["add_planning_arguments", "add_parser", "load_policy_for", "planning_options_of", "request_script_path",
-           "run"]
-
-
-def add_planning_arguments(parser) -> None:
-    """The task, library and planner options ``plan`` and ``simulate`` share."""
-    parser.add_argument("task", metavar="TASK.yaml", help="the task file (docs/task_files.rst)")
-    parser.add_argument("--library", required=True, metavar="LIB",
-                        help=library_help() + "; its X_tool0_E must equal the task's")
-    parser.add_argument("--planner", choices=PLANNERS, default="exact",
-                        help="exact shortest-path planner, or the greedy walk on a Q-policy")
-    parser.add_argument("--policy", metavar="POLICY", help="Q-policy file (needed by --planner q)")
-    parser.add_argument("--cost", choices=COST_MODES, default="fidelity",
-                        help="the action cost the planner minimises: the paper's Eq. 31 (total rotation "
-                             "distance), or fidelity, which also charges how far each demonstration is bent and "
-                             "stretched by its mapping (docs/method.rst, Shape fidelity)")
-    parser.add_argument("--refine", action="store_true",
-                        help="refine the executable plan by trajectory optimization in a tube around the "
-                             "mapped demonstrations (docs/method.rst, Refinement by trajectory optimization); "
-                             "when it fails the unrefined plan stands, with the reason (default: off)")
-    parser.add_argument("--allow-policy-mismatch", action="store_true",
-                        help="plan with a policy trained on other demonstrations than the library's "
-                             "(default: refused; with this, a warning)")
+__all__ = ["add_parser", "load_policy_for", "planning_options_of", "request_script_path", "run"]
 
 
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "plan",
+        parents=[planning_parent()],
         help="plan one SE(3) motion for a task, or request a demonstration",
         description=(
             "Plan one concrete trial of TASK.yaml with the library's demonstrations. "
             "Exit 3 with the uncovered segments when the library cannot cover the task."
         ),
     )
-    add_planning_arguments(parser)
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="draws the trial's ranged positions; seeds the Q-planner's refinement")
     parser.add_argument("--request-script", metavar="SCRIPT.yaml",
@@ -114,15 +90,20 @@ def planning_options_of(args):
 
 
 def run(args) -> int:
-    from drake_lfd.io.library import Library, check_end_effector_frame
-    from drake_lfd.io.plan_json import describe_infeasible, describe_uncovered, plan_json
-    from drake_lfd.experiments.planning_api import plan_task
-    from drake_lfd.core.tasks import draw_trial
-    from drake_lfd.io.task_files import load_task
-
     require_seed(args.seed)
     prepare_output(args.json, "--json")
     prepare_output(args.request_script, "--request-script")
+    check_task_file(args.task)  # a missing file or a typo'd key, before Drake loads
+    with interrupts_deferred():
+        import numpy as np
+
+        from drake_lfd.core.tasks import draw_trial
+        from drake_lfd.experiments.planning_api import plan_task
+        from drake_lfd.io.library import Library, check_end_effector_frame
+        from drake_lfd.io.plan_json import describe_infeasible, describe_uncovered, plan_json
+        from drake_lfd.io.strict_json import write_json
+        from drake_lfd.io.task_files import load_task
+
     options = planning_options_of(args)
     task = load_task(args.task)
     library = Library.open(args.library)

@@ -13,9 +13,7 @@ import math
 import sys
 
 from drake_lfd.cli.argument_checks import prepare_output
-from drake_lfd.io.demonstration_logs import write_rtde_csv
-from drake_lfd.io.guidance_scripts import load_guidance_script
-from drake_lfd.diagrams.kinesthetic import record_demonstration
+from drake_lfd.cli.startup import interrupts_deferred
 
 __all__ = ['add_parser', 'run']
 
@@ -39,6 +37,10 @@ def add_parser(subparsers) -> None:
 
 
 def run(args) -> int:
+    with interrupts_deferred():
+        from drake_lfd.diagrams.kinesthetic import record_demonstration
+        from drake_lfd.io.demonstration_logs import write_rtde_csv
+        from drake_lfd.io.guidance_scripts import load_guidance_script
     script = load_guidance_script(args.script)
     out = prepare_output(args.out, "--out")
 

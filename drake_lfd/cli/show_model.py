@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from drake_lfd.cli.argument_checks import prepare_output, require_meshcat
+from drake_lfd.cli.startup import interrupts_deferred
 from drake_lfd.core.errors import InputError
 
 __all__ = ['add_parser', 'run']
@@ -26,7 +25,10 @@ def add_parser(subparsers) -> None:
 
 
 def run(args) -> int:
-    from drake_lfd.diagrams.model_preview import SHOWCASE_CONFIGURATIONS, write_configurations_html
+    with interrupts_deferred():
+        import numpy as np
+
+        from drake_lfd.diagrams.model_preview import SHOWCASE_CONFIGURATIONS, write_configurations_html
 
     q_keyframes = SHOWCASE_CONFIGURATIONS if not args.q else np.array(args.q)
     if not np.all(np.isfinite(q_keyframes)):

@@ -18,8 +18,10 @@ from drake_lfd.cli.argument_checks import prepare_output, require_at_least, requ
 from drake_lfd.io.json_lines import JsonLinesFile, json_lines_path_for
 from drake_lfd.io.strict_json import write_json
 from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, EXIT_NO_EXECUTABLE_PLAN, EXIT_OK, InputError
-from drake_lfd.cli.plan import add_planning_arguments, load_policy_for, planning_options_of
-from drake_lfd.cli.sweep import add_worker_arguments, workers_of
+from drake_lfd.cli.plan import load_policy_for, planning_options_of
+from drake_lfd.cli.shared_options import planning_parent, workers_of, workers_parent
+from drake_lfd.cli.startup import interrupts_deferred
+from drake_lfd.io.task_schema import check_task_file
 
 
 __all__ = ["add_parser", "run", "CONTROLLER_CHOICES"]
@@ -31,6 +33,7 @@ CONTROLLER_CHOICES = {"compiled": "compiled", "drake": "drake", "paper": "pseudo
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "simulate",
+        parents=[planning_parent(), workers_parent()],
         help="plan and run N concrete trials of a task closed loop on a simulated UR5e",
         description=(
             "Draw N concrete trials of TASK.yaml (trial i uses seed S + i), plan each with the "
@@ -38,7 +41,6 @@ def add_parser(subparsers) -> None:
             "safety shells, and judge each run (docs/method.rst, Closed loop and success)."
         ),
     )
-    add_planning_arguments(parser)
     parser.add_argument("--trials", type=int, default=1, metavar="N", help="number of trials, >= 1")
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="the first trial's seed (trial i, from 0, uses S + i)")
@@ -58,18 +60,10 @@ def add_parser(subparsers) -> None:
                              "drake: the Python task-space controller with Drake's differential IK; paper: the "
                              "Python controller with the paper's pseudo-inverse (Eq. 35-38) (default: the task's, "
                              "compiled unless its simulation block says otherwise)")
-    add_worker_arguments(parser)
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from drake_lfd.io.library import Library, check_end_effector_frame, library_features
-    from drake_lfd.cli.progress import ProgressBar
-    from drake_lfd.experiments.simulation import (
-        run_trials, simulate_json, trial_record, trial_summary_line, write_trial_figures,
-    )
-    from drake_lfd.io.task_files import load_task
-
     require_at_least(args.trials, 1, "--trials")
     require_seed(args.seed)
     if args.html:
@@ -80,11 +74,19 @@ def run(args) -> int:
             raise InputError("shows the trials one after another in one viewer: it needs --workers 1",
                              field="--meshcat")
     workers = 1 if args.meshcat else workers_of(args, args.trials)
-    options = planning_options_of(args)
     controller = None if args.controller is None else CONTROLLER_CHOICES[args.controller]
     prepare_output(args.json, "--json")
     prepare_output(args.html, "--html")
     prepare_output(args.figures, "--figures", folder=True)
+    check_task_file(args.task)  # a missing file or a typo'd key, before Drake loads
+    with interrupts_deferred():
+        from drake_lfd.io.library import Library, check_end_effector_frame, library_features
+        from drake_lfd.cli.progress import ProgressBar
+        from drake_lfd.experiments.simulation import (
+            run_trials, simulate_json, trial_record, trial_summary_line, write_trial_figures,
+        )
+        from drake_lfd.io.task_files import load_task
+    options = planning_options_of(args)
     task = load_task(args.task)
     library = Library.open(args.library)
     check_end_effector_frame(library, task.X_tool0_E, file=args.task)
@@ -95,9 +97,14 @@ def run(args) -> int:
         bar = ProgressBar("trials", args.trials)
 
         def progress(done, total, outcome):
-            lines.append(trial_summary_line(outcome, task))
-            if finished is not None:
-                finished.append(trial_record(task, outcome))
+            line = trial_summary_line(outcome, task)
+            record = trial_record(task, outcome) if finished is not None else None
+            # The record on disk and the line printed on an interrupt go together: a Ctrl-C
+            # waits for both, and a failed write prints nothing.
+            with interrupts_deferred():
+                if finished is not None:
+                    finished.append(record)
+                lines.append(line)
             bar.update(done, "ok" if outcome.success else "failed")
 
         library.write_feature_caches()

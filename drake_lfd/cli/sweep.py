@@ -11,36 +11,26 @@ options that ``simulate`` and ``paper`` share. Not for: running or judging trial
 
 from __future__ import annotations
 
-import argparse
 import re
 import time
 from pathlib import Path
 
 from drake_lfd.cli.argument_checks import prepare_output, require_at_least, require_seed
-from drake_lfd.cli.plan import add_planning_arguments, load_policy_for
+from drake_lfd.cli.plan import load_policy_for
+from drake_lfd.cli.shared_options import planning_parent, workers_of, workers_parent
+from drake_lfd.cli.startup import interrupts_deferred
 from drake_lfd.core.errors import InputError
 from drake_lfd.io.atomic_files import fsync_directory
 from drake_lfd.io.json_lines import JsonLinesFile, read_json_lines
+from drake_lfd.io.task_schema import check_task_file
 
-__all__ = ["add_parser", "add_worker_arguments", "runner_options_of", "settings_options_of", "workers_of", "run",
+__all__ = ["add_parser", "runner_options_of", "settings_options_of", "run",
            "SWEEP_ROWS", "SUMMARY"]
 
 SWEEP_ROWS = "sweep.jsonl"
 SUMMARY = "summary.json"
 FIGURES = ("success_by_base.png", "success_by_variable.png", "failure_reasons.png")
 _NEGATIVE_AXIS = re.compile(r"^-\.?\d\S*$")
-
-
-def add_worker_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--workers N | --scheduler ADDRESS``: where the closed-loop trials run."""
-    group = parser.add_mutually_exclusive_group()
-    group.add_argument("--workers", type=int, metavar="N",
-                       help="worker processes running the closed-loop trials in parallel, one single-threaded "
-                            "process per core; 1 runs them one after another in this process (default: every "
-                            "core, at most one per trial)")
-    group.add_argument("--scheduler", metavar="ADDRESS",
-                       help="run the trials on the workers of a running dask.distributed scheduler "
-                            "(tcp://host:8786; docs/cli.rst, Sweeps on a cluster) instead of local processes")
 
 
 def runner_options_of(args) -> dict:
@@ -65,18 +55,10 @@ def settings_options_of(runner_options: dict) -> dict:
     return settings
 
 
-def workers_of(args, trials: int) -> int:
-    """``--workers`` checked (>= 1), or its default: every core, at most one per trial."""
-    from drake_lfd.experiments.parallel_trials import default_workers
-
-    if args.workers is None:
-        return default_workers(trials)
-    return require_at_least(args.workers, 1, "--workers")
-
-
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "sweep",
+        parents=[planning_parent(), workers_parent()],
         help="run N trials of a task at every robot base placement of a grid, in parallel, with a success map",
         description=(
             "Move the task's robot base over a grid (x, y in m, optionally z in m and yaw in deg), run N "
@@ -85,7 +67,6 @@ def add_parser(subparsers) -> None:
             "of the success rate over the grid, over the task's variables and the failures by kind."
         ),
     )
-    add_planning_arguments(parser)
     parser.add_argument("--trials", type=int, default=1, metavar="N", help="trials per base placement, >= 1")
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="the first trial's seed (trial i, from 0, uses S + i, at every placement)")
@@ -96,7 +77,6 @@ def add_parser(subparsers) -> None:
     # A grid axis may start with a minus ("-0.3:-0.1:5"): argparse takes such a word for an
     # option unless it looks like a negative number, so an axis counts as one here.
     parser._negative_number_matcher = _NEGATIVE_AXIS
-    add_worker_arguments(parser)
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="output folder (created if missing): sweep.jsonl (each trial as it finishes), "
                              "summary.json, success_by_base.png, success_by_variable.png, failure_reasons.png")
@@ -122,21 +102,22 @@ class _ContinuedJsonLines(JsonLinesFile):
 
 
 def run(args) -> int:
-    from drake_lfd.cli.progress import ProgressBar
-    from drake_lfd.core.tasks import draw_trial
-    from drake_lfd.experiments import sweep
-    from drake_lfd.experiments.parallel_trials import BasePlacement, run_trial_specs, runner_spec, trial_specs
-    from drake_lfd.io.library import Library, check_end_effector_frame, library_features
-    from drake_lfd.io.strict_json import write_json
-    from drake_lfd.io.task_files import load_task
-    from drake_lfd.planning.problem_size import check_problem_size
-
     start = time.perf_counter()
     require_at_least(args.trials, 1, "--trials")
     require_seed(args.seed)
     if args.workers is not None:
         require_at_least(args.workers, 1, "--workers")
     out = prepare_output(args.out, "--out", folder=True)
+    check_task_file(args.task)  # a missing file or a typo'd key, before Drake loads
+    with interrupts_deferred():
+        from drake_lfd.cli.progress import ProgressBar
+        from drake_lfd.core.tasks import draw_trial
+        from drake_lfd.experiments import sweep
+        from drake_lfd.experiments.parallel_trials import BasePlacement, run_trial_specs, runner_spec, trial_specs
+        from drake_lfd.io.library import Library, check_end_effector_frame, library_features
+        from drake_lfd.io.strict_json import write_json
+        from drake_lfd.io.task_files import load_task
+        from drake_lfd.planning.problem_size import check_problem_size
     task = load_task(args.task)
     task_base = BasePlacement.of(task.X_WB)
     grid = sweep.base_grid(args.base_grid, task_base)

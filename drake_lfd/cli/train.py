@@ -9,12 +9,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from drake_lfd.cli.argument_checks import library_help, prepare_output, require_at_least, require_seed
-from drake_lfd.io.strict_json import write_json
+from drake_lfd.cli.startup import interrupts_deferred
 from drake_lfd.core.errors import InputError
-from drake_lfd.planning.training import DEFAULT_CHAINED_TASKS
+from drake_lfd.core.option_values import DEFAULT_CHAINED_TASKS
 
 
 __all__ = ["add_parser", "curve_figure_path", "run", "training_title"]
@@ -66,13 +64,6 @@ def training_title(random_tasks: int, chained_tasks: int, library: str, *, warm_
 
 
 def run(args) -> int:
-    from drake_lfd.experiments.figures import training_curve_figure
-    from drake_lfd.io.library import Library, library_features
-    from drake_lfd.cli.progress import ProgressBar
-    from drake_lfd.io.policy_files import load_policy, save_policy
-    from drake_lfd.planning.q_learning import episodes_to_steady, never_steady
-    from drake_lfd.planning.training import train_on_random_tasks
-
     chained = DEFAULT_CHAINED_TASKS if args.chained_tasks is None else args.chained_tasks
     require_at_least(args.random_tasks, 0, "--random-tasks")
     require_at_least(args.episodes, 1, "--episodes")
@@ -82,6 +73,16 @@ def run(args) -> int:
     require_seed(args.seed)
     out = prepare_output(args.out, "--out")
     prepare_output(args.json, "--json")
+    with interrupts_deferred():
+        import numpy as np
+
+        from drake_lfd.experiments.figures import training_curve_figure
+        from drake_lfd.io.library import Library, library_features
+        from drake_lfd.cli.progress import ProgressBar
+        from drake_lfd.io.policy_files import load_policy, save_policy
+        from drake_lfd.io.strict_json import write_json
+        from drake_lfd.planning.q_learning import episodes_to_steady, never_steady
+        from drake_lfd.planning.training import train_on_random_tasks
     library = Library.open(args.library)
     if len(library) == 0:
         raise InputError("the library has no demonstrations", file=library.label)

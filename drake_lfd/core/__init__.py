@@ -28,6 +28,8 @@ The modules:
   Fig. 5, as pose sequences.
 * ``errors``: errors users can act on (``InputError``) and the command line's exit
   codes.
+* ``option_values``: the closed sets and defaults of user options (planners, costs,
+  workers), plain Python for the command line.
 * ``resources``: where the shipped data lives (the UR5e model, the paper's scenarios).
 * ``network_policy``: Drake's network switch, ``DRAKE_ALLOW_NETWORK``, read as Drake
   reads it.

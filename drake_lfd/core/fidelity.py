@@ -63,6 +63,7 @@ from drake_lfd.core.dual_quaternion import (
     translation_from_dual_quaternion,
 )
 from drake_lfd.core.features import Feature
+from drake_lfd.core.option_values import COST_MODES
 from drake_lfd.core.similarity import (
     Tolerances,
     alpha_beta_matrices,
@@ -85,7 +86,6 @@ __all__ = [
     "action_pair_costs",
 ]
 
-COST_MODES = ("paper", "fidelity")
 
 # In the "paper" mode the fidelity terms only break ties in alpha. Far above the
 # rounding of alpha's matrix form (~2e-8 for equal rotations) times the fidelity

@@ -2,14 +2,19 @@
 
 An installed drake-lfd carries them inside the package (``drake_lfd/models``,
 ``drake_lfd/sims``); a source checkout has them at the top of the repository
-(``models/``, ``sims/``). Nothing here reads or writes them.
+(``models/``, ``sims/``). Nothing here reads or writes them. Plain Python (no Drake,
+no numpy), so the command line can name the bundled libraries in its help at once.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["package_directory", "models_directory", "scenarios_directory", "bundled_library_directories"]
+__all__ = ["package_directory", "models_directory", "scenarios_directory", "bundled_library_directories",
+           "bundled_library_names", "bundled_library_paths", "MANIFEST_NAME"]
+
+#: The file that makes a folder a library (its manifest, ``io/library_manifest.py``).
+MANIFEST_NAME = "library.json"
 
 
 def package_directory() -> Path:
@@ -46,3 +51,24 @@ def scenarios_directory() -> Path:
 def bundled_library_directories() -> tuple[Path, Path]:
     """Folders searched for bundled libraries, in order: installed, then checkout."""
     return (package_directory() / "sims" / "libraries", package_directory().parent / "sims" / "libraries")
+
+
+def bundled_library_names() -> list[str]:
+    """Names of the libraries bundled with drake-lfd (sorted; may be empty)."""
+    names = set()
+    for directory in bundled_library_directories():
+        if directory.is_dir():
+            names.update(p.name for p in directory.iterdir() if (p / MANIFEST_NAME).is_file())
+    return sorted(names)
+
+
+def bundled_library_paths() -> dict[str, Path]:
+    """Name -> directory of each bundled library, where ``Library.open(name)`` finds it
+    (the first of :func:`bundled_library_directories` that has it), sorted by name."""
+    paths = {}
+    for directory in bundled_library_directories():
+        if directory.is_dir():
+            for candidate in sorted(directory.iterdir()):
+                if (candidate / MANIFEST_NAME).is_file() and candidate.name not in paths:
+                    paths[candidate.name] = candidate.resolve()
+    return dict(sorted(paths.items()))

@@ -12,14 +12,10 @@ Meshcat recordings and wall-clock timings. Judging a run against the success cri
 The plant step of a run is 5 ms (a bare station's default is 1 ms). The plant's cost
 per step barely depends on the step (SAP's fixed overhead with PD-controlled
 actuators), so the step sets the speed, and with PD treated implicitly the accuracy
-hardly suffers. Measured on a 10 s plan (``benchmarks/bench_closed_loop.py``):
-
-    plant step            1 ms      2 ms      4 ms      5 ms
-    real-time factor      3.0-3.8x  5-7x      9-10x     10-14x
-    path error max / rms  1.15/0.16 1.20/0.17 1.27/0.23 1.34/0.20 mm
-    at critical configs   0.03      0.07      0.04      0.09 mm (< 0.003 deg)
-
-against the success tolerances of 5 mm and 2 deg. 5 ms divides the 10 ms periods of the
+hardly suffers: from 1 ms to 5 ms the run gets several times faster while the errors
+along the path and at the critical configurations stay far inside the success
+tolerances of 5 mm and 2 deg (``benchmarks/bench_closed_loop.py``; figures in
+benchmarks/RESULTS.md). 5 ms divides the 10 ms periods of the
 drive's command sampling, the monitor and the logger, so their events fall on plant steps.
 
 Not for: building the Diagram (``pipeline.py``), planning (``planning/``), the drive

@@ -25,23 +25,21 @@ gear, commanded at a fixed rate):
   manipulation course's ``MakeHardwareStation`` does). The other way,
   ``StationConfig.gravity_compensation: arm_weightless``, switches gravity off on the arm
   (``plant.set_gravity_enabled(model, False)``, as the manipulation course's station does
-  for its position-controlled arms): on ``bench_closed_loop.py`` both tracked identically
-  to 1e-5 mm (0.72 mm max, 0.17 mm rms along the path, 5 ms plant; also at 1 ms and
-  with the Python controller), and a weightless arm costs about 15 % less simulation time
-  (the gravity torques are not computed every step), but its actuators never carry the
+  for its position-controlled arms): on ``bench_closed_loop.py`` both track identically
+  (also at 1 ms and with the Python controller), and a weightless arm costs less
+  simulation time (the gravity torques are not computed every step), but its actuators never carry the
   arm's weight, so an effort limit cannot bind as on the robot.
 - ``StateInterpolatorWithDiscreteDerivative`` turning joint position commands, sampled
   every ``command_period`` s, into the desired state (position and finite-difference
   velocity) of the PD controllers.
 - Reflected rotor inertia (rotor inertia times gear ratio squared) on every joint: on a
   geared arm it dominates the wrists' inertia. It is realism, not a stability fix: the
-  implicit PD is stable without it, and tracking measured the same within 0.02 mm.
+  implicit PD is stable without it, and tracking is the same with it.
 
 The plant's output ports are not sampled (``SetUseSampledOutputPorts(False)``): its step
 is then a discrete update, simultaneous with the other discrete updates of the same
 instant, rather than an unrestricted update, for which Drake's Simulator copies the whole
-Diagram's state every step (Python-valued states included: two such states in the
-pipeline cost about 30 us a step). The state output reports the state the step starts
+Diagram's state every step (Python-valued states included, a cost at every step). The state output reports the state the step starts
 from, as a periodic publisher sees it.
 
 Gains, steps and periods come from a :class:`~drake_lfd.io.simulation_config.StationConfig`,

@@ -19,6 +19,5 @@ The modules:
 * ``fidelity_tasks``: tasks cut from library demonstrations, and whether a plan
   recovers them.
 * ``pick_and_place``: random pick-and-place workcell tasks, as task files.
-* ``fuzzing``: seeded mutation fuzzing of task files and joint logs.
 * ``notebooks``: what the tutorials need to run both as scripts and as notebooks.
 """

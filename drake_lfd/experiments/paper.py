@@ -317,7 +317,7 @@ def report_markdown(results: dict, table5_rows, tasks) -> str:
         "whole action set (Eq. 29-30) and learns to avoid actions that are not similar. The curves show "
         "the greedy policy's accumulated reward after each episode (averaged over the tasks; in grey, "
         "the exploring episodes themselves, epsilon 0.8). Before each plan, 100 episodes "
-        "of the same Q-learning refine the table on the task itself (README, Method choices).",
+        "of the same Q-learning refine the table on the task itself (docs/method.rst, Planning).",
         "",
         "## The tasks",
         "",

@@ -13,9 +13,9 @@ process ran it, nor on the trials that ran before it there. With one worker (or 
 trial) and no scheduler, the trials run in this process and no cluster is started.
 
 On Linux a LocalCluster's worker processes are forked from this one
-(:data:`WORKER_START_METHOD`), so they start with pydrake imported: a 2-worker cluster
-starts in about 0.4 s. Spawned workers (other systems) import it as they join, about
-1.5 s. A command with several sets of trials (``paper``: three tasks) starts one
+(:data:`WORKER_START_METHOD`), so they start with pydrake imported and a cluster starts
+in a fraction of the time spawned workers (other systems) take, which import it as they
+join. A command with several sets of trials (``paper``: three tasks) starts one
 cluster with :func:`trial_cluster` and passes it to each :func:`run_trial_specs` call
 (``cluster=``); without ``cluster=``, each call starts and shuts down its own. A process
 loads a library's features once for all the runners it builds (a sweep's base
@@ -39,7 +39,6 @@ import hashlib
 import importlib
 import logging
 import math
-import os
 import signal
 import sys
 import time
@@ -51,6 +50,7 @@ from typing import Callable, Iterator, Sequence
 import numpy as np
 
 from drake_lfd.core.errors import InputError
+from drake_lfd.core.option_values import default_workers
 from drake_lfd.planning.options import PlanningOptions
 
 __all__ = [
@@ -73,8 +73,8 @@ RUNNERS_PER_WORKER = 4
 
 
 #: Libraries' features a process keeps, by library and fingerprint: the runners of a
-#: sweep's base placements share one set (loading ``paper5`` takes 0.2-0.3 s, building a
-#: runner from it 0.05 s). Features are read-only, so sharing them is safe.
+#: sweep's base placements share one set (loading a library costs several times what
+#: building a runner from it does). Features are read-only, so sharing them is safe.
 FEATURE_SETS_PER_PROCESS = 2
 _FEATURES: OrderedDict[tuple[str, str], dict] = OrderedDict()
 
@@ -242,15 +242,10 @@ def run_trial_spec(spec: TrialSpec):
     return _runner_for(spec.runner).run(trial=spec.trial, seed=spec.seed, record_html=spec.record_html)
 
 
-def default_workers(trials: int) -> int:
-    """Every core, but no more workers than trials."""
-    return max(1, min(os.cpu_count() or 1, int(trials)))
-
-
 #: Dask's periodic housekeeping, slowed: the system monitors' samples and the
-#: event-loop tick check. At their defaults the main process (scheduler and client) used
-#: 6.4 s of CPU in a 67 s 40-trial sweep on 2 cores, time taken from the workers; with
-#: these, 3.6 s (most of it loading the task and library).
+#: event-loop tick check. At their defaults the main process (scheduler and client) takes
+#: a noticeable share of a 2-core machine from the workers; with these, about half of
+#: that, most of it loading the task and library (bench_sweep.py).
 _QUIET_CLUSTER = {
     "distributed.admin.system-monitor.interval": "5s",
     "distributed.admin.tick.interval": "1s",

@@ -14,6 +14,10 @@ Grasp and place are drawn on opposite sides of the robot's x axis, 0.3-0.6 m out
 0.08-0.15 m wide and 0.10-0.18 m high stands on the table halfway between them, inside
 a safety shell 3 cm larger on every side, so the carry must pass over it.
 
+With ``shell_near_base``, a second shell stands beside the robot (12-30 cm from the
+base axis, at any bearing), as guards and racks crowd a real cell: the arm's shoulder and upper
+arm pass near it as shoulder_pan turns, so some tasks can only be refused.
+
 Not for: running them (``benchmarks/bench_pick_and_place.py``, ``simulation.py``).
 """
 
@@ -35,8 +39,11 @@ def _fmt(values) -> str:
     return "[" + ", ".join(f"{float(v):.4f}" for v in values) + "]"
 
 
-def pick_and_place_yaml(seed: int, *, obstacle_probability: float = 0.8) -> str:
-    """The task file of pick-and-place task ``seed`` (see the module docstring)."""
+def pick_and_place_yaml(seed: int, *, obstacle_probability: float = 0.8, shell_near_base: bool = False) -> str:
+    """The task file of pick-and-place task ``seed`` (see the module docstring).
+
+    ``shell_near_base``: also a safety shell beside the robot (:func:`_base_shell`), drawn
+    from the same seed after everything else, so the task is otherwise the same."""
     rng = np.random.default_rng(seed)
     side = 1.0 if rng.random() < 0.5 else -1.0
     grasp = np.array([rng.uniform(0.3, 0.6), side * rng.uniform(0.15, 0.45), GRASP_Z_M])
@@ -68,7 +75,27 @@ def pick_and_place_yaml(seed: int, *, obstacle_probability: float = 0.8) -> str:
             "safety_shells:",
             f"  - {{name: box_shell, centre: {_fmt(shell_centre)}, size: {_fmt(shell_size)}}}",
         ]
+    if shell_near_base:
+        centre, size = _base_shell(rng)
+        if "safety_shells:" not in lines:
+            lines.append("safety_shells:")
+        lines.append(f"  - {{name: base_shell, centre: {_fmt(centre)}, size: {_fmt(size)}}}")
     return "\n".join(lines) + "\n"
+
+
+def _base_shell(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A keep-out shell standing on the table beside the robot, as a guard around a
+    machine's door or a parts rack leaves one (centre, size): 10-25 cm wide, 20-60 cm
+    high, its near face 12-30 cm from the base axis at a random bearing, so the
+    shoulder's and the upper arm's sweeps in shoulder pan pass near it one way round or
+    both (and, in front, the tool may have to pass over it)."""
+    width = rng.uniform(0.10, 0.25, 2)
+    height = rng.uniform(0.20, 0.60)
+    bearing = rng.uniform(0.0, 2 * np.pi)
+    near = rng.uniform(0.12, 0.30)
+    distance = near + 0.5 * float(width.max())
+    centre = np.array([distance * np.cos(bearing), distance * np.sin(bearing), height / 2])
+    return centre, np.append(width, height)
 
 
 def write_pick_and_place_tasks(directory: Path, count: int, first_seed: int = 0) -> list[Path]:

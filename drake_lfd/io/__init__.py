@@ -7,6 +7,7 @@ and the closed loop's gains and periods come from ``simulation_config``.
 The modules:
 
 * ``task_files``: task files, the YAML form of a task, read and checked.
+* ``task_schema``: a task file's keys and the check of its structure, without Drake.
 * ``simulation_config``: the typed ``simulation:`` block: station, controller (the
   default ``compiled`` one or the baseline's ``drake`` / ``pseudo_inverse``), monitor,
   logger, planner system.

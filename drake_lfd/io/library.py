@@ -86,7 +86,7 @@ from drake_lfd.core.features import (
     Feature,
     arc_lengths_from_poses,
 )
-from drake_lfd.core.resources import bundled_library_directories
+from drake_lfd.core.resources import bundled_library_directories, bundled_library_names, bundled_library_paths
 from drake_lfd.io.atomic_files import atomic_write_bytes, atomic_write_many, fsync_directory
 from drake_lfd.io.demonstration_logs import (
     check_plausible_motion,
@@ -194,13 +194,17 @@ def remove_stale_temporaries(directory):
 def is_unused_library_directory(path):
     """True if ``path`` does not exist, or is a directory without a manifest that holds
     nothing but what a library write killed before its manifest leaves (the lock file,
-    temporary files, empty ``demos/`` and ``cache/``): a place a new library may go."""
+    temporary files, ``demos/`` (with the logs of a killed create when the lock file is
+    there) and an empty ``cache/``): a place a new library may go."""
     path = Path(path)
     if not path.exists():
         return True
     if not path.is_dir() or (path / MANIFEST_NAME).exists():
         return False
     debris = {str(p) for p in _temporaries(path)}
+    if (path / LOCK_NAME).is_file() and (path / DEMOS_DIRECTORY).is_dir():
+        # A create killed between its logs and its manifest (``Library.create(first=...)``).
+        debris |= {str(p) for p in (path / DEMOS_DIRECTORY).iterdir() if p.is_file()}
     for child in path.iterdir():
         if child.name == LOCK_NAME and child.is_file():
             continue
@@ -361,28 +365,6 @@ class DemonstrationPreparer:
         )
 
 
-def bundled_library_names():
-    """Names of the libraries bundled with drake-lfd (sorted; may be empty)."""
-    names = set()
-    for directory in bundled_library_directories():
-        if directory.is_dir():
-            names.update(p.name for p in directory.iterdir() if (p / MANIFEST_NAME).is_file())
-    return sorted(names)
-
-
-def bundled_library_paths():
-    """Name -> directory of each bundled library, where ``Library.open(name)`` finds it
-    (the first of :func:`~drake_lfd.core.resources.bundled_library_directories` that
-    has it), sorted by name."""
-    paths = {}
-    for directory in bundled_library_directories():
-        if directory.is_dir():
-            for candidate in sorted(directory.iterdir()):
-                if (candidate / MANIFEST_NAME).is_file() and candidate.name not in paths:
-                    paths[candidate.name] = candidate.resolve()
-    return dict(sorted(paths.items()))
-
-
 def tool_frame_options(X_tool0_E):
     """The ``library add`` options that choose the end-effector frame ``X_tool0_E``, as
     one would type them: ``--tool0-E-p 0 0 0.2 --tool0-E-euler-zyx 0 pi/2 0``.
@@ -532,14 +514,20 @@ class Library:
         return library
 
     @classmethod
-    def create(cls, path, X_tool0_E=None, **feature_parameters):
-        """Creates an empty library directory (the directory may exist if empty).
+    def create(cls, path, X_tool0_E=None, *, first=(), **feature_parameters):
+        """Creates a library directory (the directory may exist if empty), empty or holding
+        ``first``.
 
         Parameters
         ----------
         path : str or Path
         X_tool0_E : RigidTransform, optional
             The end-effector frame of the demonstrations to come; identity by default.
+        first : sequence of prepared demonstrations (:meth:`prepare`), optional
+            Written in the same turn of the lock as the manifest, which lists them: the
+            manifest is the library, so a create killed before it leaves no library (its
+            logs are debris a later create clears), and one killed after leaves them all.
+            Their names must differ (ignoring case).
 
         Raises
         ------
@@ -575,10 +563,17 @@ class Library:
                     raise InputError(not_empty, file=path)
                 _make_directory(directory / DEMOS_DIRECTORY)
                 _make_directory(directory / CACHE_DIRECTORY)
+                if first:
+                    atomic_write_many([(directory / item.entry.file, item.log_bytes) for item in first])
+                    manifest = manifest.with_entries(tuple(item.entry for item in first))
                 write_manifest(directory, manifest)
         except BaseException:
-            if created and not (directory / MANIFEST_NAME).exists():
-                _remove_unused_directory(directory)
+            if not (directory / MANIFEST_NAME).exists():
+                for item in first:
+                    with contextlib.suppress(OSError):
+                        (directory / item.entry.file).unlink()
+                if created:
+                    _remove_unused_directory(directory)
             raise
         return cls(
             path=directory,

@@ -40,6 +40,7 @@ from typing import NamedTuple
 from pydrake.math import RigidTransform
 
 from drake_lfd.core.errors import InputError
+from drake_lfd.core.resources import MANIFEST_NAME
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform, rigid_transform_from_pose_json
 
@@ -62,7 +63,6 @@ __all__ = [
 ]
 
 SCHEMA_VERSION = 1
-MANIFEST_NAME = "library.json"
 # The library's lock file (empty; writers hold an exclusive flock on it).
 LOCK_NAME = "library.lock"
 # The temporary files of atomic writes (``atomic_files.atomic_write_bytes``), as a glob.

@@ -19,9 +19,8 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
-
-import numpy as np
 
 from drake_lfd.io.atomic_files import atomic_write_bytes
 
@@ -35,13 +34,16 @@ def json_ready(value):
         return {key: json_ready(item) for key, item in value.items()}
     if isinstance(value, (list, tuple)):
         return [json_ready(item) for item in value]
-    if isinstance(value, np.ndarray):
+    # NumPy's types exist only once numpy is imported; the command line writes JSON
+    # without importing it for its own sake (it starts without numpy).
+    np = sys.modules.get("numpy")
+    if np is not None and isinstance(value, np.ndarray):
         return json_ready(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
+    if isinstance(value, bool) or (np is not None and isinstance(value, np.bool_)):
         return bool(value)
-    if isinstance(value, (int, np.integer)):
+    if isinstance(value, int) or (np is not None and isinstance(value, np.integer)):
         return int(value)
-    if isinstance(value, (float, np.floating)):
+    if isinstance(value, float) or (np is not None and isinstance(value, np.floating)):
         number = float(value)
         return number if math.isfinite(number) else None
     return value

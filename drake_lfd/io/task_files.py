@@ -1,7 +1,8 @@
 """Task files: the YAML form of a task, read and checked into a :class:`~drake_lfd.core.tasks.Task`.
 
 A task file is YAML, loaded with ``pydrake.common.yaml.yaml_load_typed`` into the
-``*Spec`` dataclasses below (unknown keys are errors), then checked value by value into
+``*Spec`` dataclasses of :mod:`drake_lfd.io.task_schema` (unknown keys are errors; that
+module checks a file's structure without Drake), then checked value by value into
 the :class:`~drake_lfd.core.tasks.Task` of :mod:`drake_lfd.core.tasks` (Eq. 10), whose
 :func:`~drake_lfd.core.tasks.draw_trial` makes each evaluation trial. The format is
 documented for users in docs/task_files.rst.
@@ -89,13 +90,11 @@ import dataclasses
 import math
 import re
 from pathlib import Path
-from typing import Optional, Union
 
 import numpy as np
 
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.tasks import (
-    DEFAULT_ANGLE_GRID_DEG,
     MIN_CRITICAL_CONFIGURATIONS,
     PATH_CONSTRAINT_KINDS,
     Box,
@@ -109,31 +108,23 @@ from drake_lfd.core.tasks import (
 from drake_lfd.core.timing import TimingLimits
 from drake_lfd.core.tool import ToolShape
 
+from drake_lfd.io import task_schema
+from drake_lfd.io.simulation_config import PipelineConfig
+
 # The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
 # scripts, so both report problems alike.
-from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.io.yaml_checks import (
-    PoseSpec,
-    Scalar,
     angle,
     coordinate,
     finite,
     load_spec,
     pose,
     read_text,
-    required,
     vector,
 )
 
+# The Spec dataclasses other than TaskSpec are io/task_schema.py's.
 __all__ = [
-    "CriticalConfigurationSpec",
-    "BoxSpec",
-    "CylinderSpec",
-    "ToolShapeSpec",
-    "PathConstraintSpec",
-    "DeviationSpec",
-    "RefinementSpanSpec",
-    "RefinementSpec",
     "TaskSpec",
     "load_task_spec",
     "task_spec_from_text",
@@ -146,7 +137,7 @@ __all__ = [
 ]
 
 #: Most critical configurations a task may have: planning time grows with the square of
-#: their number (100 fixed ones plan in about 15 s on one core, 200 take minutes).
+#: their number (100 fixed ones plan in seconds on one core, 200 take minutes).
 MAX_CRITICAL_CONFIGURATIONS = 100
 #: Most obstacles, and most safety shells, a task may have: every one is a clearance
 #: query per robot geometry at every step the plan-time check and the monitor take (a
@@ -163,130 +154,16 @@ MIN_ANGLE_GRID_DEG = 1e-3
 
 # ------------------------------------------------------------------ schema (the YAML)
 
-# A coordinate or angle: a number-like token, or a [lower, upper] list of them.
-Entry = Union[list[Scalar], float, int, str]
-
-
+# The keys and kinds of values are io/task_schema.py's (plain Python, so the command line
+# checks a file's structure before Drake loads); the loader's TaskSpec types the
+# simulation: block as the Drake structs it is.
 @dataclasses.dataclass
-class CriticalConfigurationSpec:
-    """``con_i``: each coordinate / angle a value, a [lower, upper] range or a variable."""
+class TaskSpec(task_schema.TaskSpec):
+    """The whole task file (see the module docstring): the keys of
+    :class:`drake_lfd.io.task_schema.TaskSpec`, its ``simulation:`` block a
+    :class:`~drake_lfd.io.simulation_config.PipelineConfig`."""
 
-    p: list[Entry] = dataclasses.field(
-        default_factory=list,
-        metadata={"required": True, "expected": "a number, a [lower, upper] list or a variable name"},
-    )
-    euler_zyx: list[Entry] = dataclasses.field(
-        default_factory=list,
-        metadata={"required": True, "expected": "an angle or a [lower, upper] list of angles"},
-    )
-    # Whether the tool comes to rest here (absent: only at the first and the last).
-    stop: Optional[bool] = dataclasses.field(default=None, metadata={"expected": "true or false"})
-
-
-@dataclasses.dataclass
-class BoxSpec:
-    """A box in W: ``centre`` and full edge lengths ``size``, metres; ``euler_zyx`` turns
-    its edges (axis-aligned if absent)."""
-
-    name: str = required(str)
-    centre: list[float] = required(list)
-    size: list[float] = required(list)
-    euler_zyx: list[Scalar] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
-
-
-@dataclasses.dataclass
-class CylinderSpec:
-    """A cylinder of the tool: ``radius`` and full ``length`` along its z axis, metres."""
-
-    radius: float = required(float)
-    length: float = required(float)
-
-
-@dataclasses.dataclass
-class ToolShapeSpec:
-    """One shape of the ``tool:`` block, fixed to ``tool0``: a ``box: [x, y, z]`` (full
-    edges) or a ``cylinder: {radius, length}``, centred at ``p`` and turned by
-    ``euler_zyx`` in ``tool0``."""
-
-    name: str = required(str)
-    box: list[float] = dataclasses.field(default_factory=list)
-    cylinder: CylinderSpec = dataclasses.field(default_factory=CylinderSpec)
-    p: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
-    euler_zyx: list[Scalar] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
-
-
-@dataclasses.dataclass
-class DeviationSpec:
-    """How far refinement may move E from the composed path: metres and degrees (each
-    absent: as the wider bounds say)."""
-
-    position_m: Optional[float] = dataclasses.field(
-        default=None, metadata={"expected": "a number (metres), or absent"})
-    rotation_deg: Optional[float] = dataclasses.field(
-        default=None, metadata={"expected": "a number (degrees), or absent"})
-
-
-@dataclasses.dataclass
-class PathConstraintSpec:
-    """A constraint judged on a run between two critical configurations (1-based)."""
-
-    kind: str = "orientation"
-    between: list[int] = required(list)
-    euler_zyx: list[Scalar] = required(list)
-    tolerance_deg: float = required(float)
-    # Absent (or its rotation_deg): refinement keeps the rotation within tolerance_deg of the
-    # composed path here.
-    max_deviation: DeviationSpec = dataclasses.field(default_factory=DeviationSpec)
-
-
-@dataclasses.dataclass
-class RefinementSpanSpec(DeviationSpec):
-    """An entry of ``refinement.spans``: the bound from con_j to con_k."""
-
-    between: list[int] = required(list)
-
-
-@dataclasses.dataclass
-class RefinementSpec:
-    """The ``refinement:`` block (module docstring)."""
-
-    max_deviation: DeviationSpec = dataclasses.field(default_factory=DeviationSpec)
-    spans: list[RefinementSpanSpec] = dataclasses.field(default_factory=list)
-
-
-@dataclasses.dataclass
-class TimingSpec:
-    """The ``timing:`` block: the limits the plan's time-optimal timing keeps to
-    (:class:`~drake_lfd.core.timing.TimingLimits`, whose defaults these are)."""
-
-    joint_speed_rad_s: float = TimingLimits.joint_speed_rad_s
-    joint_acceleration_rad_s2: float = TimingLimits.joint_acceleration_rad_s2
-    tool_speed_m_s: float = TimingLimits.tool_speed_m_s
-    tool_acceleration_m_s2: Optional[float] = dataclasses.field(
-        default=None, metadata={"expected": "a number (m/s^2), or absent for none"})
-    limit_fraction: float = TimingLimits.limit_fraction
-
-
-@dataclasses.dataclass
-class TaskSpec:
-    """The whole task file (see the module docstring)."""
-
-    name: str = ""
-    description: str = ""
-    X_WB: PoseSpec = dataclasses.field(default_factory=PoseSpec)
-    X_tool0_E: PoseSpec = dataclasses.field(default_factory=PoseSpec)
-    angle_grid_deg: float = DEFAULT_ANGLE_GRID_DEG
-    variables: dict[str, list[Scalar]] = dataclasses.field(default_factory=dict)
-    critical_configurations: list[CriticalConfigurationSpec] = required(list)
-    obstacles: list[BoxSpec] = dataclasses.field(default_factory=list)
-    safety_shells: list[BoxSpec] = dataclasses.field(default_factory=list)
-    path_constraints: list[PathConstraintSpec] = dataclasses.field(default_factory=list)
     simulation: PipelineConfig = dataclasses.field(default_factory=PipelineConfig)
-    timing: TimingSpec = dataclasses.field(default_factory=TimingSpec)
-    refinement: RefinementSpec = dataclasses.field(default_factory=RefinementSpec)
-    # Absent (None): the default tool sized from X_tool0_E; [] for no tool geometry.
-    tool: Optional[list[ToolShapeSpec]] = dataclasses.field(
-        default=None, metadata={"expected": "a list of tool shapes ([] for none)"})
 
 
 # ----------------------------------------------------------------------------- loading
@@ -307,7 +184,7 @@ def load_task_spec(path):
 
 def task_spec_from_text(text, *, file=None):
     """Like :func:`load_task_spec` for YAML text; ``file`` is named in errors."""
-    return load_spec(text, TaskSpec, file=file, document="the task file", keys="task keys")
+    return load_spec(text, TaskSpec, file=file, **task_schema.TASK_FILE_WORDS)
 
 
 def _interval(values, *, file, field, convert, context=""):

@@ -22,6 +22,11 @@ angles can be written as numbers, as multiples of pi or in degrees
 ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (docs/method.rst, Conventions;
 :func:`~drake_lfd.core.tasks.rigid_transform_from_euler_zyx`).
 
+Reading and checking the structure (:func:`check_yaml_file`, :func:`check_schema`)
+imports neither Drake nor numpy, so the command line refuses a typo'd key at once;
+Drake is imported when a Spec is loaded (:func:`load_spec`) and a pose built
+(:func:`pose`).
+
 Not for: what a file means (its own module checks that: ranges, ordering, names), nor
 for logs and libraries (``demonstration_logs.py``, ``library.py``).
 """
@@ -31,17 +36,15 @@ for logs and libraries (``demonstration_logs.py``, ``library.py``).
 import dataclasses
 import math
 import re
+import sys
 import types
 import typing
 from pathlib import Path
 from typing import Union
 
-import numpy as np
 import yaml
-from pydrake.common.yaml import yaml_load_typed
 
 from drake_lfd.core.errors import InputError
-from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
 
 __all__ = [
     "MAX_YAML_DEPTH",
@@ -56,6 +59,7 @@ __all__ = [
     "check_yaml_depth",
     "read_text",
     "load_spec",
+    "check_yaml_file",
     "kind_of",
     "check_schema",
     "angle_from_text",
@@ -258,6 +262,26 @@ def load_spec(text, schema, *, file, document, keys):
     InputError
         Invalid YAML, a duplicated or unknown key, or a value of the wrong kind.
     """
+    check_yaml_file(text, schema, file=file, document=document, keys=keys)
+    from pydrake.common.yaml import yaml_load_typed
+
+    try:
+        return yaml_load_typed(schema=schema, data=text)
+    except Exception as error:  # anything left is still the file's fault
+        raise InputError(f"cannot load: {error}", file=file) from None
+
+
+def check_yaml_file(text, schema, *, file, document, keys):
+    """The first half of :func:`load_spec`, in plain Python: the YAML's nesting, its
+    syntax, duplicated keys, and its structure against the Spec dataclass ``schema``
+    (key names, kinds of values, required keys). Parameters and errors as
+    :func:`load_spec`.
+
+    Returns
+    -------
+    dict
+        The raw YAML mapping, root keys starting with ``_`` left out.
+    """
     check_yaml_depth(text, file)
     try:
         raw = yaml.load(text, Loader=UniqueKeyLoader)
@@ -273,10 +297,7 @@ def load_spec(text, schema, *, file, document, keys):
         raise InputError(f"expected a mapping of {keys}, got {kind_of(raw)}", file=file)
     raw = {key: value for key, value in raw.items() if not (isinstance(key, str) and key.startswith("_"))}
     check_schema(raw, schema, "", file)
-    try:
-        return yaml_load_typed(schema=schema, data=text)
-    except Exception as error:  # anything left is still the file's fault
-        raise InputError(f"cannot load: {error}", file=file) from None
+    return raw
 
 
 # ------------------------------------------------------------------------------ schema
@@ -390,7 +411,10 @@ def check_schema(value, schema, path, file, expected=None):
                 )
             check_schema(item, item_schema, _join(path, key), file)
         return
-    if schema is np.ndarray:  # a vector in one of Drake's structs (Rgba's rgba)
+    if schema is typing.Any:  # a block checked by its own loader (a task file's simulation: block)
+        return
+    numpy = sys.modules.get("numpy")  # no schema can name numpy's array before numpy is imported
+    if numpy is not None and schema is numpy.ndarray:  # a vector in one of Drake's structs (Rgba's rgba)
         if not isinstance(value, list) or not all(_matches_scalar(item, float) for item in value):
             raise InputError(f"expected a list of numbers, got {kind_of(value)}", file=file, field=path)
         return
@@ -545,6 +569,8 @@ def vector(values, count, *, file, field, convert):
     the entries are named ``field[i]`` in errors."""
     if len(values) != count:
         raise InputError(f"expected {count} values, got {len(values)}", file=file, field=field)
+    import numpy as np
+
     return np.array([convert(v, file=file, field=f"{field}[{i}]") for i, v in enumerate(values)])
 
 
@@ -553,4 +579,6 @@ def pose(spec, *, file, field):
     such as ``PoseSpec``. Errors name ``field.p[i]`` or ``field.euler_zyx[i]``."""
     p = vector(spec.p, 3, file=file, field=f"{field}.p", convert=coordinate)
     euler = vector(spec.euler_zyx, 3, file=file, field=f"{field}.euler_zyx", convert=angle)
+    from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
+
     return rigid_transform_from_euler_zyx(p, euler)

@@ -68,8 +68,8 @@ __all__ = ["SUFFIX_SEPARATION", "Step", "SpanAllocation", "TableStats", "Composi
 # least this many resampled samples apart (a tenth of a 100-sample demonstration).
 SUFFIX_SEPARATION = 10
 # Pair costs of one row computed at once (a chunk of the library's demonstrations): bounds
-# the kernel's temporaries and keeps them in the processor's cache (measured at h = 10,000:
-# 2^14-2^16 pair costs 3.0-3.3 s of CPU for the table, 2^17 and more 5.8-7.4 s).
+# the kernel's temporaries and keeps them in the processor's cache (chunks of 2^14-2^16
+# pair costs are about twice as fast as 2^17 and more: bench_library_scale.py).
 _PAIRS_PER_CHUNK = 1 << 15
 
 

@@ -30,8 +30,10 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 from collections.abc import Callable, Sequence
 
+import numpy as np
 from pydrake.math import RigidTransform
 
 from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
@@ -107,6 +109,7 @@ def search_executable(
     max_starts: int = MAX_START_BRANCHES,
     refusal: Callable[[CompositionProblem], list[InfeasibleSegment]] | None = None,
     path_constraints: Sequence = (),
+    repeats: Callable[[], object] | None = None,
 ) -> ExecutableSearch:
     """Lazy search for an executable composition (see the module docstring).
 
@@ -132,6 +135,11 @@ def search_executable(
     ``path_constraints`` (the task's) are checked on every follow: a composition that
     turns the tool beyond one is blocked like a collision, and the search tries the
     others (:meth:`~drake_lfd.robot.joint_path.JointPathChecker.follow`).
+
+    ``repeats()`` makes, per start branch, a record of measured blockers
+    (``planning/refusals.RepeatedPanBlockers``): its ``record(plan, path)`` learns from
+    each blocked follow and its ``repeated(plan)`` returns the blocker a composition
+    repeats, which then stands for its follow (the composition is ruled out unfollowed).
     """
     first = None
     asked: list = []
@@ -146,7 +154,7 @@ def search_executable(
         attempt.cost = dict(problem.cost)
         search = _search_from(attempt, solve, compose, checker, demo_names, start_index,
                               alternatives=alternatives, max_rounds=max_rounds, refused=refused,
-                              path_constraints=path_constraints)
+                              path_constraints=path_constraints, repeats=None if repeats is None else repeats())
         if search.steps is None and asked and asked[0]:
             return search  # no other start can help
         if search.steps is not None:
@@ -162,7 +170,7 @@ def search_executable(
 
 
 def _search_from(problem, solve, compose, checker, demo_names, start_index, *, alternatives, max_rounds,
-                 refused=lambda problem: (), path_constraints=()):
+                 refused=lambda problem: (), path_constraints=(), repeats=None):
     """The lazy search with the start fixed to branch ``start_index`` (see
     :func:`search_executable`)."""
     blocked: list[InfeasibleSegment] = []
@@ -176,16 +184,25 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
         if steps is None:
             return ExecutableSearch(None, None, None, tuple(blocked), rounds - 1, tried_a_start)
 
-        def check(current: dict):
+        def check(current: dict, spans: range | None = None):
             """Composes with the mappings ``current`` and follows it from the start branch
-            ``start_index`` (with its windings); None when there is no such branch."""
+            ``start_index`` (with its windings); None when there is no such branch. A
+            composition ``repeats`` rules out in ``spans`` (all by default) is not
+            followed: only there does its blocker stand for the follow's (a later span's
+            would hide whether the spans before it run)."""
             composed = compose(steps, {i: current[s] for i, s in enumerate(steps) if s in current})
             timed = composed[0]
             starts = checker.start_candidates(RigidTransform(matrices_from_dual_quaternion(timed.poses[:1])[0]))
             if len(starts) <= start_index:
                 return composed, None
+            blocker = None if repeats is None else repeats.repeated(timed, spans)
+            if blocker is not None:
+                return composed, JointPath(np.array([blocker.time_s]), np.zeros((0, 6)), blocker, (), math.inf,
+                                           math.inf, math.inf, math.inf, start_index=start_index)
             path = checker.follow_from_candidates(timed, starts[start_index:start_index + 1],
                                                   path_constraints=path_constraints)
+            if repeats is not None and not path.executable:
+                repeats.record(timed, path)
             return composed, dataclasses.replace(path, start_index=start_index)
 
         composed, path = check(overrides)
@@ -225,7 +242,7 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
             for option in alternatives(step):
                 trial = dict(overrides)
                 trial[step] = option
-                composed, path = check(trial)
+                composed, path = check(trial, range(step.j, step.k))
                 if path is not None and (path.executable or _blocking_index(steps, path.blocker) > index):
                     overrides = trial  # this mapping gets the arm past the step
                     passed = True

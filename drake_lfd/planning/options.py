@@ -23,14 +23,12 @@ from __future__ import annotations
 import dataclasses
 
 from drake_lfd.core.fidelity import FidelityWeights, check_cost_mode
+from drake_lfd.core.option_values import PLANNERS
 from drake_lfd.core.similarity import Tolerances
 from drake_lfd.core.timing import DEFAULT_MAX_ANGULAR_SPEED_RAD_S, DEFAULT_MAX_SPEED_M_S, TimingLimits
 from drake_lfd.planning.q_learning import DEFAULT_REFINE_EPISODES
 
 __all__ = ["PLANNERS", "PlanningOptions"]
-
-#: The planners: the exact shortest-path planner and the greedy walk on a Q-policy.
-PLANNERS = ("exact", "q")
 
 
 @dataclasses.dataclass(frozen=True)

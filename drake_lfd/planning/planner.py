@@ -31,7 +31,7 @@ from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.executable import InfeasibleSegment, search_executable
 from drake_lfd.planning.problem_size import check_problem_size
 from drake_lfd.planning.options import PLANNERS, PlanningOptions
-from drake_lfd.planning.refusals import blocked_configurations, distinct_reasons
+from drake_lfd.planning.refusals import RepeatedPanBlockers, blocked_configurations, distinct_reasons
 from drake_lfd.planning.stretching import solve_within_stretch_bound
 from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.features import Feature
@@ -335,6 +335,7 @@ def compose_plan(
     points_E: np.ndarray | None = None,
     overrides: Mapping[int, tuple[int | None, float | None]] | None = None,
     per_step: list | None = None,
+    mapped_memo: dict | None = None,
 ) -> tuple[np.ndarray, list[int], np.ndarray, float, float]:
     """Maps each step's demo onto its span (see :func:`map_span_clear`) and joins them.
 
@@ -345,7 +346,9 @@ def compose_plan(
     Returns poses (N, 8), critical indices (n,), chosen euler_zyx (n, 3), the exact
     cost of each step (its allocation's total alpha), and the largest position and
     rotation corrections applied; ``per_step``, when given, receives each step's
-    ``(position_m, rotation_rad)`` corrections.
+    ``(position_m, rotation_rad)`` corrections. ``mapped_memo``, when given, keeps each
+    step's mapping by ``(step, first_index, twist)`` for the next call (the search composes
+    the same steps again and again; a mapping depends on nothing else).
     """
     names = list(features)
     n = problem.num_cons
@@ -364,8 +367,14 @@ def compose_plan(
             [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)]
         )
         feature = features[names[step.demo]]
-        mapped, _twist = map_span_clear(feature.poses, span.allocation, task_poses, keep_out, floor_z, points_E,
-                                        twist=twist)
+        key = (step, first_index, None if twist is None else float(twist))
+        if mapped_memo is not None and key in mapped_memo:
+            mapped = mapped_memo[key]
+        else:
+            mapped, _twist = map_span_clear(feature.poses, span.allocation, task_poses, keep_out, floor_z, points_E,
+                                            twist=twist)
+            if mapped_memo is not None:
+                mapped_memo[key] = mapped
         start = sum(len(p) for p in pieces) - (1 if pieces else 0)
         pieces.append(mapped.poses if not pieces else mapped.poses[1:])
         anchors = np.asarray(mapped.anchor_indices)
@@ -474,6 +483,7 @@ def plan_composition(
         checker, ExactMemo(maxsize=256))
     span_memo: dict = {}
     twist_memo: dict = {}
+    mapped_memo: dict = {}
 
     def span_poses(step, first):
         """``step``'s allocation from suffix ``first`` and its candidates' task poses
@@ -506,7 +516,7 @@ def plan_composition(
                 overrides[index] = (first, twists_of(step, first, 1)[0])
         per_step: list = []
         path, critical, chosen, costs, max_position, max_rotation = compose_plan(
-            problem, steps, features, angles, keep_out, floor_z, points_E, overrides, per_step)
+            problem, steps, features, angles, keep_out, floor_z, points_E, overrides, per_step, mapped_memo)
         timed = time_plan(path, critical, max_speed_m_s=max_speed_m_s,
                           max_angular_speed_rad_s=max_angular_speed_rad_s)
         return timed, chosen, costs, max_position, max_rotation, per_step
@@ -516,10 +526,13 @@ def plan_composition(
     def correction_of(step):
         """The largest position correction of ``step``'s default mapping (memoized)."""
         if step not in correction_memo:
-            span, task_poses = span_poses(step, None)
-            mapped, _ = map_span_clear(feature_list[step.demo].poses, span.allocation, task_poses,
-                                       twist=twists_of(step, None, 1)[0])
-            correction_memo[step] = mapped.max_correction_position_m
+            twist = float(twists_of(step, None, 1)[0])
+            key = (step, None, twist)  # compose_plan's key for the same mapping
+            if key not in mapped_memo:
+                span, task_poses = span_poses(step, None)
+                mapped_memo[key], _ = map_span_clear(feature_list[step.demo].poses, span.allocation, task_poses,
+                                                     twist=twist)
+            correction_memo[step] = mapped_memo[key].max_correction_position_m
         return correction_memo[step]
 
     if cost == "fidelity":  # the paper's cost keeps Eq. 31 and its choices as they are
@@ -544,7 +557,8 @@ def plan_composition(
     else:
         search = search_executable(problem, solve, compose, checker, names, alternatives=alternatives,
                                    refusal=lambda problem: blocked_configurations(problem, checker),
-                                   path_constraints=task.path_constraints)
+                                   path_constraints=task.path_constraints,
+                                   repeats=lambda: RepeatedPanBlockers(checker))
         steps, composed, joint_path, blocked, rounds = (
             search.steps, search.composed, search.joint_path, distinct_reasons(search.blocked), search.rounds)
     greedy_completed, fallback = q_outcome.get("greedy_completed"), q_outcome.get("fallback")

@@ -54,11 +54,11 @@ MAX_CANDIDATES_PER_CONFIGURATION = 2000
 MAX_PLANNING_BYTES = 512 * 2**20
 #: Most work over the whole problem, in pair costs: the kernel's pair costs plus the
 #: allocation's steps (each intermediate con of a span runs one step over every pair
-#: cost of the span's ends) divided by :data:`ALLOCATION_STEPS_PER_PAIR_COST`. About 25
-#: million pair costs are computed per second on one core, so this bounds the time
-#: (about 16 s; measured 45 s for 45 configurations with 25 candidates each, 1.4e9).
+#: cost of the span's ends) divided by :data:`ALLOCATION_STEPS_PER_PAIR_COST`. Planning
+#: time is proportional to it, so this bounds the time a plan may take to seconds on one
+#: core (``benchmarks/bench_library_scale.py``; figures in benchmarks/RESULTS.md).
 MAX_PLANNING_WORK = 400_000_000
-#: Allocation steps that take as long as one pair cost (measured: about 4).
+#: Allocation steps that take as long as one pair cost (timed against each other).
 ALLOCATION_STEPS_PER_PAIR_COST = 4
 #: Bytes per pair cost while one span end is computed: alpha and beta (float64) and two
 #: boolean masks and the allocation's work arrays (measured: 10.7 GiB peak for 5.2e8 pair costs).

@@ -35,9 +35,9 @@ Parameters (Table 6 and what the paper leaves open):
 Plan-time refinement (beyond the paper's Algorithm 2, in the spirit of its retraining):
 before the greedy walk, ``DEFAULT_REFINE_EPISODES`` episodes of the same Q-learning run
 on the task's own states, seeded by the general table. A tabular key cannot tell apart
-tasks that look alike but cost differently, so the general table alone walks 4-10 %
-above the optimum on 100 held-out chained tasks; after refinement 0.0 % (measured by
-``benchmarks/bench_planners.py``), at a cost of a few milliseconds.
+tasks that look alike but cost differently, so the general table alone walks above the
+optimum on held-out chained tasks, and after refinement at it
+(``benchmarks/bench_planners.py``), at a small cost per plan.
 
 Adding a demonstration adds actions but no keys, so a trained table warm-starts
 retraining (``train(..., policy=old)``; measured by ``benchmarks/bench_warm_start.py``).

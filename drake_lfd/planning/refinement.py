@@ -135,9 +135,9 @@ class RefinementOptions:
         The program's own bound on E's speed at each inner critical configuration,
         along each world axis (0.4 m/s: the optimizer plans a slow passage, and the
         retiming above brings the magnitude, up to sqrt(3) times that, within
-        ``pass_speed_m_s``; at 0.4 / sqrt(3) per axis, which keeps the magnitude
-        within it in the program already, assembling's refined motion took 4.77 s
-        against 3.64 s). None, or ``pass_speed_m_s`` None: no such bound.
+        ``pass_speed_m_s``; 0.4 / sqrt(3) per axis, which keeps the magnitude within
+        it in the program already, makes the refined motions markedly slower). None, or
+        ``pass_speed_m_s`` None: no such bound.
     path_constraint_margin_rad : float
         The program holds each path constraint to what the check allows
         (:func:`~drake_lfd.robot.path_constraints.allowed_deviation`, the measure the

@@ -21,6 +21,11 @@ And shapes whose clearance depends on shoulder_pan alone must pass every pan bet
 two consecutive configurations' branches, one way round or the other: when both ways
 come within the clearance, that span blocks every composition.
 
+What the pre-check cannot prove, the search can still learn cheaply:
+:class:`RepeatedPanBlockers` rules out, without following it, a composition whose poses
+turn shoulder_pan through a pan where a follow already measured a pan-only shape too
+close.
+
 :func:`distinct_reasons` merges the segments the search did report into one per distinct
 reason, with how many alternatives each blocked.
 
@@ -31,6 +36,7 @@ Not for: following joint paths (``robot/joint_path.py``) or the search itself
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 import weakref
 from collections.abc import Sequence
@@ -39,14 +45,16 @@ import numpy as np
 from pydrake.math import RigidTransform
 
 from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion, translation_from_dual_quaternion
-from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.planning.composition import CompositionProblem
 from drake_lfd.planning.executable import InfeasibleSegment
+from drake_lfd.robot.analytic_ik import shoulder_pan_roots
+from drake_lfd.robot.motion_bounds import motion_bounds
 from drake_lfd.robot.joint_path import (
-    JointPathChecker, describe_clearance_shortfall, describe_shoulder_shortfall, shoulder_singularity_distance,
+    Blocker, JointPathChecker, describe_clearance_shortfall, describe_shoulder_shortfall, shoulder_singularity_distance,
 )
 
-__all__ = ["branch_signature", "branch_violation", "blocked_configurations", "distinct_reasons"]
+__all__ = ["branch_signature", "branch_violation", "blocked_configurations", "distinct_reasons",
+           "RepeatedPanBlockers"]
 
 
 def branch_violation(checker: JointPathChecker, q: np.ndarray, distance_m: float, robot_geometry: str | None,
@@ -205,6 +213,34 @@ def _pan_only_rows(checker: JointPathChecker) -> np.ndarray:
 _PAN_MEMOS: "weakref.WeakKeyDictionary[JointPathChecker, dict]" = weakref.WeakKeyDictionary()
 
 
+def _pan_memo(checker: JointPathChecker) -> dict:
+    """The checker's pan-only rows, their Lipschitz constant in shoulder_pan (the largest
+    distance of their points from the pan axis) and its pan sweep (:func:`_pan_sweeps`)."""
+    memo = _PAN_MEMOS.setdefault(checker, {})
+    if "rows" not in memo:
+        scene = checker.scene
+        rows = _pan_only_rows(checker)
+        plant, inspector = scene.plant, scene.scene_graph.model_inspector()
+        ids = scene.geometry.robot_geometry_ids
+        memo["lipschitz"] = max((float(motion_bounds(plant, inspector, ids[r])[0]) for r in rows), default=0.0)
+        memo["rows"], memo["sweeps"] = rows, None
+    return memo
+
+
+def _pan_sweeps(checker: JointPathChecker) -> "_PanClearance":
+    """The checker's pan-only clearance as a function of shoulder_pan (made once per
+    checker: the pan-only rows' distances do not depend on the other joints, so any
+    configuration serves; all joints but the pan at zero)."""
+    memo = _pan_memo(checker)
+    if memo.get("sweeps") is None:
+        scene, rows = checker.scene, memo["rows"]
+        pans = np.linspace(0.0, 2 * np.pi, PAN_GRID, endpoint=False)
+        q = np.zeros(6)
+        least = _pan_table(scene, q, rows, pans).reshape(PAN_GRID, -1).min(axis=1)
+        memo["sweeps"] = _PanClearance(scene, q, rows, pans, least, memo["lipschitz"], checker.limits.clearance_m)
+    return memo["sweeps"]
+
+
 def _pan_table(scene, q: np.ndarray, rows: np.ndarray, pans: np.ndarray) -> np.ndarray:
     """The signed distances (pans, rows, boxes) of the pan-only ``rows`` with ``q``'s
     shoulder_pan turned to each of ``pans``."""
@@ -214,6 +250,93 @@ def _pan_table(scene, q: np.ndarray, rows: np.ndarray, pans: np.ndarray) -> np.n
         q[0] = pan
         table.append(scene.signed_distances(q)[rows])
     return np.array(table)
+
+
+class _PanClearance:
+    """The least clearance of the pan-only shapes as a function of shoulder_pan, decided
+    exactly over any arc.
+
+    ``f(pan)`` is the least signed distance of the pan-only rows to the boxes, measured as
+    the follow measures it (Drake's signed distances). On the grid it is known; between
+    two pans ``x0 < x1`` with values ``v0, v1`` it is at least ``(v0 + v1) / 2 - L (x1 -
+    x0) / 2``, ``L`` the largest distance of those shapes' points from the pan axis (a
+    signed distance to a fixed box changes no faster than the shape's points move). A
+    piece whose bound clears the clearance is clear; a measured value below it is a
+    witness that the piece is blocked; otherwise the piece is halved and measured at its
+    middle, down to :data:`PAN_RESOLUTION_RAD`. So a sweep passing 9.96 mm from a shell
+    between two grid pans is blocked here as in the follow, whichever the grid.
+
+    Values are ``(least, pan)``: the least clearance measured and where."""
+
+    def __init__(self, scene, q: np.ndarray, rows: np.ndarray, pans: np.ndarray, least: np.ndarray,
+                 lipschitz: float, clearance: float):
+        self._scene, self._q, self._rows = scene, np.array(q, dtype=float), rows
+        self.pans, self.least, self.step = pans, least, float(pans[1] - pans[0])
+        self.lipschitz, self.clearance = lipschitz, clearance
+        self._measured: dict[float, float] = {}
+        count = len(pans)
+        # Each grid cell k = [pans[k], pans[k + 1]]: the least found in it, where, blocked.
+        v0, v1 = least, np.roll(least, -1)
+        self.cell_least = np.minimum(v0, v1)
+        self.cell_pan = np.where(v0 <= v1, pans, np.roll(pans, -1))
+        self.cell_blocked = self.cell_least < clearance
+        uncertain = (0.5 * (v0 + v1) - 0.5 * lipschitz * self.step < clearance) & ~self.cell_blocked
+        for k in np.flatnonzero(uncertain):
+            (value, pan), blocked = self.piece(float(pans[k]), float(v0[k]), float(pans[k]) + self.step, float(v1[k]))
+            self.cell_least[k], self.cell_pan[k], self.cell_blocked[k] = value, pan, blocked
+        self._blocked_before = np.concatenate([[0], np.cumsum(np.tile(self.cell_blocked, 2))])
+        self._count = count
+
+    def f(self, pan: float) -> float:
+        """The least signed distance of the pan-only rows with shoulder_pan at ``pan``."""
+        if pan not in self._measured:
+            q = self._q.copy()
+            q[0] = pan
+            self._measured[pan] = float(self._scene.signed_distances(q)[self._rows].min())
+        return self._measured[pan]
+
+    def piece(self, x0: float, v0: float, x1: float, v1: float) -> tuple[tuple[float, float], bool]:
+        """``((least, pan), blocked)`` over ``[x0, x1]``, given ``f(x0) >= v0`` and ``f(x1) >=
+        v1`` (the values themselves where measured)."""
+        found = min((v0, x0), (v1, x1))
+        stack = [(x0, v0, x1, v1)]
+        while stack:
+            a, va, b, vb = stack.pop()
+            if min(va, vb) < self.clearance:
+                return min(found, (va, a), (vb, b)), True
+            if 0.5 * (va + vb) - 0.5 * self.lipschitz * (b - a) >= self.clearance or b - a < PAN_RESOLUTION_RAD:
+                continue
+            middle = 0.5 * (a + b)
+            value = self.f(middle % (2 * np.pi))
+            found = min(found, (value, middle))
+            stack += [(a, va, middle, value), (middle, value, b, vb)]
+        return found, False
+
+    def arc(self, x: float, y: float) -> tuple[tuple[float, float], bool]:
+        """``((least, pan), blocked)`` turning forward (increasing pan) from ``x`` to ``y``
+        (both in [0, 2 pi), each a branch's pan: clear there)."""
+        turn = 2 * np.pi
+        length = (y - x) % turn
+        kx = int(x // self.step) % self._count
+        up = (kx + 1) * self.step
+        if length <= up - x:
+            return self.piece(x, self.clearance, x + length, self.clearance)
+        ky = int(y // self.step) % self._count
+        first, first_blocked = self.piece(x, self.clearance, up, float(self.least[(kx + 1) % self._count]))
+        last, last_blocked = self.piece(ky * self.step, float(self.least[ky]), y, self.clearance)
+        end = ky if ky > kx else ky + self._count  # the full cells kx + 1 .. end - 1, going round
+        cells = np.arange(kx + 1, end) % self._count
+        least = min(first, last)
+        if len(cells):
+            k = cells[int(np.argmin(self.cell_least[cells]))]
+            least = min(least, (float(self.cell_least[k]), float(self.cell_pan[k])))
+        blocked = first_blocked or last_blocked or self._blocked_before[end] > self._blocked_before[kx + 1]
+        return least, bool(blocked)
+
+
+# Pieces of a pan sweep narrower than this are not halved further (a clearance within a
+# hair of the margin between two such pans is taken as kept).
+PAN_RESOLUTION_RAD = 1e-6
 
 
 def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
@@ -226,41 +349,33 @@ def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
     the pan alone has, at each pan, one clearance; when on both ways round, for every pair
     of branches, some pan brings such a shape within the clearance, every composition is
     blocked on that span (the per-configuration check already kept only branches that
-    keep every margin)."""
+    keep every margin). Each way round is decided exactly (:class:`_PanClearance`), not
+    on the grid alone, so the pre-check and the follow agree on a clearance within a hair
+    of the margin."""
     scene = checker.scene
     if not scene.geometry.keep_out_geometry_ids or any(not good for good in good_branches):
         return []
-    memo = _PAN_MEMOS.setdefault(checker, {})
-    if "rows" not in memo:
-        memo["rows"], memo["tables"] = _pan_only_rows(checker), ExactMemo(maxsize=8)
-    rows = memo["rows"]
-    if not len(rows):
+    memo = _pan_memo(checker)
+    rows, lipschitz = memo["rows"], memo["lipschitz"]
+    if not len(rows) or not np.isfinite(lipschitz):
         return []
-    pans = np.linspace(0.0, 2 * np.pi, PAN_GRID, endpoint=False)
-    q = np.array(good_branches[0][0], dtype=float)
-    table = memo["tables"].get(exact_key(q), lambda: _pan_table(scene, q, rows, pans))
-    least = table.reshape(PAN_GRID, -1).min(axis=1)
     clearance = checker.limits.clearance_m
+    sweeps = _pan_sweeps(checker)
+    q = np.zeros(6)
     segments = []
     for i in range(problem.num_cons - 1):
-        a = np.mod([b[0] for b in good_branches[i]], 2 * np.pi)
-        b = np.mod([b[0] for b in good_branches[i + 1]], 2 * np.pi)
-        worst = _sweep_minimum(least, pans, a, b)  # (len a, len b): the better way round's least
-        # A path keeps its branch: only pairs of the same branch can be joined.
-        same = np.array([[branch_signature(qa) == branch_signature(qb) for qb in good_branches[i + 1]]
-                         for qa in good_branches[i]])
-        worst = np.where(same, worst, -np.inf)
-        if worst.max() >= clearance:
+        closest = _closest_blocked_sweep(sweeps, good_branches[i], good_branches[i + 1])
+        if closest is None:
             continue
-        # The pair of branches and the way round that comes closest to passing.
-        k = int(np.argmax(worst))
-        best = float(worst.flat[k])
-        pan_at = int(np.flatnonzero(least <= best + 1e-12)[0])
-        row, box = np.unravel_index(np.argmin(table[pan_at]), table[pan_at].shape)
+        value, pan = closest
+        q_at = q.copy()
+        q_at[0] = pan
+        distances = scene.signed_distances(q_at)[rows]
+        row, box = np.unravel_index(np.argmin(distances), distances.shape)
         names = scene.geometry
         robot = names.names[names.robot_geometry_ids[rows[row]]]
         what = names.describe(names.keep_out_geometry_ids[box])
-        verb = describe_clearance_shortfall(what, best, clearance)
+        verb = describe_clearance_shortfall(what, value, clearance)
         segments.append(InfeasibleSegment(
             i + 1, i + 2, "collision",
             f"{robot} {verb} whichever way shoulder_pan turns from con_{i + 1} to con_{i + 2}, on every "
@@ -269,19 +384,121 @@ def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
     return segments
 
 
-def _sweep_minimum(least: np.ndarray, pans: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """For each pan pair (a_r, b_c), shape (len a, len b): the least of ``least`` (the
-    clearance at each grid pan) over the arc from a_r to b_c, on the way round where that
-    least is larger (the arc's grid pans strictly between the ends)."""
-    turn = 2 * np.pi
-    forward = np.mod(pans[None, None, :] - a[:, None, None], turn)  # pans ahead of a
-    length = np.mod(b[None, :] - a[:, None], turn)[:, :, None]
-    inside_forward = (forward > 0) & (forward < length)
-    inside_backward = (forward > length) & (forward < turn)
-    values = least[None, None, :]
-    ccw = np.where(inside_forward, values, np.inf).min(axis=-1)
-    cw = np.where(inside_backward, values, np.inf).min(axis=-1)
-    return np.maximum(ccw, cw)
+def _closest_blocked_sweep(sweeps: _PanClearance, starts: list[np.ndarray], ends: list[np.ndarray]):
+    """None when some pair of branches (one of ``starts``, one of ``ends``, the same
+    branch) has a clear way round; else ``(least, pan)`` of the pair and way that come
+    closest to passing."""
+    closest = None
+    for qa in starts:
+        for qb in ends:
+            if branch_signature(qa) != branch_signature(qb):
+                continue  # a path keeps its branch
+            a, b = float(np.mod(qa[0], 2 * np.pi)), float(np.mod(qb[0], 2 * np.pi))
+            (forward, forward_blocked), (backward, backward_blocked) = sweeps.arc(a, b), sweeps.arc(b, a)
+            if not (forward_blocked and backward_blocked):
+                return None
+            better = max(forward, backward)
+            closest = better if closest is None else max(closest, better)
+    return closest
+
+
+class RepeatedPanBlockers:
+    """Rules out, unfollowed, the compositions whose poses turn shoulder_pan through a pan
+    where a pan-only shape is measured within the clearance.
+
+    A shape whose clearance depends on shoulder_pan alone (:func:`_pan_only_rows`) and
+    is within the clearance at pan ``p`` blocks every path that turns shoulder_pan
+    through ``p``, whatever the other joints do; :class:`_PanClearance` measures where
+    (Drake's signed distances on the 1-degree grid, decided exactly between). A path's
+    pan follows from its poses alone (:func:`~drake_lfd.robot.analytic_ik.
+    shoulder_pan_roots`, on the shoulder root of its start; a path off the shoulder
+    singularity keeps it), so a composition whose poses over a span turn the pan across
+    a grid cell holding such a measurement, by more than :data:`PAN_REPEAT_MARGIN_RAD`
+    beyond it either side (the follow lags its poses a little), is blocked there like a
+    follow would find it, with a blocker of the same wording.
+
+    It wakes at the first blocked follow (:meth:`record`): a task whose first composition
+    runs pays nothing. One instance serves one start branch of one search."""
+
+    def __init__(self, checker: JointPathChecker):
+        self._checker = checker
+        memo = _pan_memo(checker)
+        self._rows = memo["rows"]
+        usable = (len(self._rows) and np.isfinite(memo["lipschitz"])
+                  and len(checker.scene.geometry.keep_out_geometry_ids))
+        self._usable = bool(usable)
+        kinematics = checker.kinematics
+        self._X_BW = kinematics.X_WB.inverse().GetAsMatrix4()
+        self._X_E_tool0 = kinematics.X_tool0_E.inverse().GetAsMatrix4()
+        self._sweeps: _PanClearance | None = None
+        self._root: int | None = None
+        self.ruled_out = 0
+
+    def _roots(self, plan) -> np.ndarray:
+        """The shoulder_pan roots (n, 2) of every pose of ``plan``."""
+        X_WE = matrices_from_dual_quaternion(plan.poses)
+        return shoulder_pan_roots(self._X_BW @ X_WE @ self._X_E_tool0)
+
+    def record(self, plan, path) -> None:
+        """Learns from a blocked follow of ``plan``: wakes, and takes the shoulder root of the
+        path's start."""
+        if not self._usable or path.executable or not len(path.q) or self._root is not None:
+            return
+        first = self._roots(plan)[0]
+        if np.isnan(first).any():
+            return
+        pan = float(path.q[0][0])
+        self._root = int(np.argmin(np.abs(np.remainder(first - pan + np.pi, 2 * np.pi) - np.pi)))
+        self._sweeps = _pan_sweeps(self._checker)
+
+    def repeated(self, plan, spans: range | None = None) -> Blocker | None:
+        """The blocker ``plan`` meets turning its pan through a blocked cell, in the first
+        span (of ``spans``, 0-based; all by default) where it does; else None."""
+        if self._sweeps is None:
+            return None
+        sweeps = self._sweeps
+        roots = self._roots(plan)[:, self._root]
+        due = [int(i) for i in plan.critical_indices]
+        for span in range(len(due) - 1) if spans is None else spans:
+            sweep = roots[due[span]:due[span + 1] + 1]
+            if not len(sweep) or np.isnan(sweep).any():
+                continue
+            sweep = np.unwrap(sweep)
+            low, high = sweep.min() + PAN_REPEAT_MARGIN_RAD, sweep.max() - PAN_REPEAT_MARGIN_RAD
+            first, last = math.ceil(low / sweeps.step), math.floor(high / sweeps.step) - 1
+            if last < first:
+                continue
+            cells = np.arange(first, last + 1) % len(sweeps.pans)
+            blocked = cells[sweeps.cell_blocked[cells]]
+            if not len(blocked):
+                continue
+            # The blocked cell the path meets first, as the follow would.
+            k = blocked[0] if sweep[-1] >= sweep[0] else blocked[-1]
+            value, pan = float(sweeps.cell_least[k]), float(sweeps.cell_pan[k])
+            self.ruled_out += 1
+            crossing = int(np.argmin(np.abs(np.remainder(sweep - pan + np.pi, 2 * np.pi) - np.pi)))
+            time_s = float(plan.times[due[span] + crossing])
+            return self._blocker(value, pan, max(time_s, 1e-9), span)
+        return None
+
+    def _blocker(self, value: float, pan: float, time_s: float, span: int) -> Blocker:
+        """The follow's wording for the pan-only shape nearest a box at ``pan``."""
+        scene = self._checker.scene
+        q = np.zeros(6)
+        q[0] = pan
+        distances = scene.signed_distances(q)[self._rows]
+        row, box = np.unravel_index(np.argmin(distances), distances.shape)
+        names = scene.geometry
+        robot_id, box_id = names.robot_geometry_ids[self._rows[row]], names.keep_out_geometry_ids[box]
+        what = names.describe(box_id)
+        verb = describe_clearance_shortfall(what, value, self._checker.limits.clearance_m)
+        return Blocker("collision", f"collision with {what}: {names.names.get(robot_id, robot_id)} {verb}", time_s,
+                       span, pair=(robot_id, box_id))
+
+
+# How far past a blocked grid cell a path's poses must turn for it to count as crossing it
+# (the follow lags its poses by far less).
+PAN_REPEAT_MARGIN_RAD = math.radians(1.0)
 
 
 def _closeness(detail: str) -> float:

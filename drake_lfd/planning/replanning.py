@@ -79,8 +79,8 @@ class ScheduledPlan:
     inputs: tuple = ()
 
     def __post_init__(self):
-        # The pose trajectory and its derivative are built when first asked for (6 ms for
-        # a 7 s plan: the compiled closed loop tracks the joint path and never asks).
+        # The pose trajectory and its derivative are built when first asked for (a cost
+        # per plan the compiled closed loop, which tracks the joint path, never asks for).
         object.__setattr__(self, "_trajectory", None)
         object.__setattr__(self, "_velocity", None)
         # Evaluated every control period: plain floats, no array indexing.

@@ -26,6 +26,7 @@ import numpy as np
 
 from drake_lfd.planning.composition import CompositionProblem
 from drake_lfd.core.features import Feature
+from drake_lfd.core.option_values import DEFAULT_CHAINED_TASKS
 from drake_lfd.planning.planner import build_problem
 from drake_lfd.planning.q_learning import QLearningParameters, QPolicy, TrainingResult, train
 from drake_lfd.planning.random_tasks import chained_task, random_training_task
@@ -78,7 +79,6 @@ __all__ = [
     "train_on_random_tasks",
 ]
 
-DEFAULT_CHAINED_TASKS = 0
 CHAINED_PERTURBATION_DEG = 15.0
 CHAINED_PERTURBATION_M = 0.02
 

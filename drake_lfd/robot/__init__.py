@@ -20,6 +20,8 @@ The modules:
   desired end-effector motion (shared by the check and the baseline controller).
 * ``joint_path``: the plan-time joint-path check (``JointPathChecker``): a timed SE(3)
   plan followed as the controller will follow it.
+* ``path_constraints``: a task's path constraints measured on a motion (the one measure
+  the check, the refinement and the judge share).
 * ``path_timing``: time-optimal timing of a plan's joint path under the UR5e's limits.
 * ``toppra``: TOPP-RA with each stage's linear program in closed form.
 * ``trajectory_optimization``: Drake's kinematic trajectory optimization of a joint path

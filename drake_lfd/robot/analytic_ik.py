@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-__all__ = ["UR5E_DH_D", "UR5E_DH_A", "ur5e_branches"]
+__all__ = ["UR5E_DH_D", "UR5E_DH_A", "ur5e_branches", "shoulder_pan_roots"]
 
 # Universal Robots' UR5e DH parameters (m): link offsets d and lengths a (standard DH;
 # alpha = pi/2, 0, 0, pi/2, -pi/2, 0). The URDF's forward kinematics equals the table's
@@ -88,3 +88,18 @@ def ur5e_branches(T_B_tool0: np.ndarray, q6_free: float = 0.0) -> np.ndarray:
                 solutions.append([_wrapped(q1), _wrapped(q2), _wrapped(q3), _wrapped(q4), _wrapped(q5),
                                   _wrapped(q6)])
     return np.array(solutions, dtype=float).reshape(-1, 6)
+
+
+def shoulder_pan_roots(T_B_tool0: np.ndarray) -> np.ndarray:
+    """The two shoulder_pan angles (m, 2) that place ``tool0`` at each pose of ``T_B_tool0``
+    (m, 4, 4): the roots :func:`ur5e_branches` takes, ``bearing + offset`` then ``bearing -
+    offset`` (each branch's q1 is one of them); NaN where the wrist centre is within
+    ``d4`` of the base axis. Along a joint path that keeps off the shoulder singularity
+    the root stays the same, so the pan a path must sweep follows from its poses alone."""
+    T = np.asarray(T_B_tool0, dtype=float)
+    A, B = _D6 * T[:, 1, 2] - T[:, 1, 3], _D6 * T[:, 0, 2] - T[:, 0, 3]
+    radius = np.sqrt(A * A + B * B)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        offset = np.where(radius >= _D4, np.arccos(np.minimum(_D4 / radius, 1.0)), np.nan)
+    bearing = np.arctan2(-B, A)
+    return np.stack([bearing + offset, bearing - offset], axis=1)

@@ -16,7 +16,7 @@ it returns the joint velocity ``v``; the caller integrates the *command*,
   down (never bending its direction) when a limit binds. For the UR5e's square,
   invertible Jacobian the QP's solution has a closed form, ``v = alpha J^-1 V`` with
   alpha the largest feasible scale <= 1, evaluated directly (equal to the QP's to 1e-13,
-  about 10 us instead of 150-270 us); the QP itself runs only when ``J`` is singular or
+  an order of magnitude faster than a solver); the QP itself runs only when ``J`` is singular or
   the command is outside the limits. :attr:`DifferentialIKLaw.last_scale` tells which
   limit bound the last step, so a caller can say why a motion slowed down.
 - ``method="pseudo_inverse"``: the paper's Eq. 35-36, ``qdot = J^T (J J^T)^-1 V``, with

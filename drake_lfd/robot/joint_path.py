@@ -177,6 +177,8 @@ class Blocker:
         0-based index of the span (between consecutive critical configurations) it is in.
     con : int or None
         1-based critical configuration concerned (``reach`` at a critical configuration).
+    pair : tuple of (GeometryId, GeometryId) or None
+        For a ``collision``: the robot geometry and the box (or table) too close.
     """
 
     reason: str
@@ -184,6 +186,7 @@ class Blocker:
     time_s: float
     span: int
     con: int | None = None
+    pair: tuple | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -492,7 +495,7 @@ class JointPathChecker:
                 what = "the table" if box_id in self._table_ids else names.describe(box_id)
                 verb = describe_clearance_shortfall(what, clearance, limits.clearance_m)
                 blocker = Blocker("collision", f"collision with {what}: {names.names.get(robot_id, robot_id)} {verb}",
-                                  t, span)
+                                  t, span, pair=(robot_id, box_id))
                 break
             # Tracking: along the path, and at each critical configuration when due.
             # The step's law evaluates E's pose error at q: the tracking error.

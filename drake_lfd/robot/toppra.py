@@ -10,8 +10,8 @@ least and largest ``x`` from which the rest can still be run, ending at rest), a
 pass takes the largest ``u`` that keeps the next ``x`` inside them, and ``s(t)`` is the
 piecewise quadratic through the grid (``s_k + sdot_k tau + u_k tau^2 / 2``).
 
-Drake solves each stage's two-variable linear program with CLP, three solves per grid
-point (about 0.1 ms a point). This module builds the same constraints and solves the
+Drake solves each stage's two-variable linear program with CLP, three solver calls per
+grid point. This module builds the same constraints and solves the
 same programs exactly, in closed form: eliminating ``u`` (Fourier-Motzkin) turns every
 pair of a lower and an upper bound on ``u`` into a bound on ``x``; the pairs that do not
 involve the next stage's set are computed for all stages at once, the few that do in

@@ -26,19 +26,19 @@ Choices, measured on a 10 s, four-configuration plan (``benchmarks/bench_closed_
   the feedback sees the real end-effector pose; the command integrates from the
   previous *command*. Restarting each step from the measured positions loses the servo
   lag every step (the command stays one small step ahead of the measurement); feeding back the command's own pose instead of the
-  measured one leaves the servo lag uncorrected (path rms 0.6 mm against 0.2 mm).
-- The feedback gain K = 20 /s: K = 0 (pure feed-forward) ends 0.9 mm off at the
-  critical configurations, K = 5-20 brings that to 0.13-0.03 mm; K = 40 starts to ring
-  (0.2 mm). It integrates on the command side, i.e. acts as integral action on the
+  measured one leaves the servo lag uncorrected (a path error several times larger).
+- The feedback gain K = 20 /s: K = 0 (pure feed-forward) ends visibly off at the
+  critical configurations, K = 5-20 brings that down by an order of magnitude; K = 40
+  starts to ring. It integrates on the command side, i.e. acts as integral action on the
   tracking error, and stays well below the servo bandwidth (40 rad/s).
 - The controller updates ``COMMAND_READY_BEFORE_SAMPLE_S`` (0.1 ms) before each multiple
   of its period, the instant the drive samples the command, and targets the pose due one
   period later: the drive then holds a command that is centred on the interval it is
   applied over. Updating at the sampling instants themselves delays every command by
   a full period (the drive still holds the old one), and halfway leaves half of it:
-  path rms 0.84 and 0.74 mm against 0.20 mm with a 5 ms plant step.
-- A 10 ms period: 5 ms and 2 ms track somewhat better (path max
-  0.8 and 0.6 mm against 1.1 mm) but cost proportionally more Python calls.
+  either way the path error is several times larger.
+- A 10 ms period: 5 ms and 2 ms track somewhat better but cost proportionally more
+  Python calls.
 
 Not for: the drive (``station.py``), the plan (``plan_trajectory_source.py``) or the
 initial configuration (``initial_ik.py``).

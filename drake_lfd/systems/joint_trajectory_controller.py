@@ -38,11 +38,9 @@ samples the command) whose output is its state, so the drive holds the command b
 updates and the controller's systems are evaluated once a period, at the update, not at
 every plant step. With the output fed through, ``y = x + dt v``, as before, every 5 ms
 plant step evaluated the whole chain again with that step's measurement, for a command
-that moved between the drive's samples: a transferring trial's simulation took 1.28x the
-CPU of the station driven along the same joint path (min of 10 interleaved runs), now
-1.04x. The instructions executed barely changed (callgrind: 893 M against 881 M, the
-driven station 841 M, the station holding still 744 M), so the saving is in the memory
-system, not in arithmetic. The update at
+that moved between the drive's samples, and the closed loop cost well above the station
+driven along the same joint path; now it costs about the same. The instructions executed
+barely changed (callgrind), so the saving is in the memory system, not in arithmetic. The update at
 ``t_k`` sees the positions of ``t_k`` (the station's plant steps as a discrete update,
 simultaneous with this one) and its command takes effect from the next plant step, so
 the feed-forward is the path's step one period ahead, as the Python controller targets

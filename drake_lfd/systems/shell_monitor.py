@@ -3,8 +3,8 @@
 Safety shells are filtered out of contact (``scene.py``), so SceneGraph's all-pairs
 queries cannot see them. The monitor asks for each (robot geometry, box) pair with
 ``QueryObject.ComputeSignedDistancePairClosestPoints(id_A, id_B)``, which ignores
-collision filters, at a fixed rate (100 Hz by default: about 4-7 us per pair, so a 1 kHz
-monitor would add ~40 % to a run, as measured). Given the arm's joint positions, it
+collision filters, at a fixed rate (100 Hz by default: every sample costs a query per
+pair, so a 1 kHz monitor would add markedly to a run). Given the arm's joint positions, it
 skips the pairs that provably cannot lower any record (see ``ShellMonitor``), so most
 samples query two or three of the twenty pairs; the records are the same as querying
 every pair, to the bit. Its state keeps, for every box, the
@@ -16,13 +16,12 @@ negative distance is a penetration; optionally the monitor then ends the simulat
 
 Because those are the logger's samples, the pipeline's monitor measures them from the
 log (given a kinematic scene of the same work cell: ``clearances_with_log``, called
-once when the run is read off its Context: one batch saves 2-3 ms per trial against a
-batch at each critical configuration), with no event of its own: a Python event every 10 ms and its pairs loop cost about as
-much as the plant's step (a run's step 347 us against 191 us with the log measured, on a
-loaded machine). A batch's joint travel and motion bounds are computed at once, and the
-scene's arm is posed only at the samples where some pair's bound has run out (on the
-transferring task about two samples in three, 2.5 pairs each): 13 ms of CPU per trial
-against 27 ms visiting every sample. The records are the same, to the bit (``tests/test_closed_loop_compiled.py``
+once when the run is read off its Context: one batch is cheaper than a batch at each
+critical configuration), with no event of its own: a Python event every 10 ms and its
+pairs loop cost about as much as the plant's step. A batch's joint travel and motion
+bounds are computed at once, and the scene's arm is posed only at the samples where some
+pair's bound has run out (on the transferring task about two samples in three, 2.5 pairs
+each), about half the work of visiting every sample. The records are the same, to the bit (``tests/test_closed_loop_compiled.py``
 compares them on the transferring task; 12 pick-and-place tasks, filling and pouring and
 assembling agreed too). With ``stop_on_penetration`` the monitor samples itself, to end
 the run at the penetration's sample.

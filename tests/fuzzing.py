@@ -22,7 +22,8 @@ each named so a finding can be traced to its class:
 A case carries the field a refusal should name where the mutation knows it (the task
 file's top-level key it changed); the harness that runs the cases through the command
 line and judges the outcome is ``benchmarks/fuzz_inputs.py`` (docs/cli.rst, Fuzzed inputs),
-its seeded sample ``tests/test_fuzz_inputs.py``. :func:`non_finite_json_tokens` counts
+its seeded sample ``tests/test_fuzz_inputs.py``. Test tooling, kept beside its tests and
+out of the installed package (the benchmark imports it from ``tests/``). :func:`non_finite_json_tokens` counts
 ``NaN``/``Infinity`` in a JSON text.
 
 Not for: running commands, judging results (the harness does), valid-input generation
