@@ -5,8 +5,8 @@ a refined plan never breaks a path constraint or a bound (the composed plan, whi
 search checked, stands instead).
 
 The machine-tending task (``tests/data/machine_tending.yaml``) pulls a part 14 cm straight
-out of a fixture (con_6 -> con_7) within 3 deg: without the bound, the refinement turned
-the part 18 deg during that lift.
+out of a fixture (con_6 -> con_7) within 3 deg: without a bound the refinement may turn
+the part during that lift by anything the default tube allows.
 """
 
 import json

@@ -167,13 +167,13 @@ class RefinementOptions:
         ``clearance_m``).
     clearance_m : float
         The program's clearance when ``limits`` is None (3 cm; the check demands 1 cm on
-        the followed path, which lags the motion where it is fast, so a motion 2 cm
-        clear at the program's samples passed a shell within 1 cm on transferring).
+        the followed path, which lags the motion where it is fast and passes between the
+        program's samples, so the program keeps more).
     repair_clearance_m : float
         A tube program's motion that fails the check for a collision is solved once more
         from itself with this much more clearance (2 cm; 0: never): otherwise whether a
-        start passes a shell by 9.9 or 10.1 mm decides, with the plan's last bits, which
-        start the plan takes.
+        start passes a shell a hair inside or outside the clearance decides, with the
+        plan's last bits, which start the plan takes.
     starts, fallback_starts : tuple of str
         The tube program's starts, in order, and those tried only when none of them gives
         a motion that passes (``_starts``).
@@ -439,7 +439,7 @@ class _Allowed:
         plan is at the same path fraction, as the whole task's tube is. A tight bound at
         matching fractions would hold the timing along the span too: a motion that must
         come to rest at a critical configuration lags a reference moving uniformly in the
-        path fraction by centimetres (a 14 cm lift refined only within 4 cm)."""
+        path fraction, and no faster motion keeps a tight bound there."""
         return np.array([not source[0].startswith(("refinement.max_deviation", "the default"))
                          for source in self.sources], dtype=bool)
 
@@ -716,13 +716,11 @@ def _starts(method: str, line_guess, composed_guess, limits: TrajectoryLimits, s
     the tube, the same limits, targets and path constraints, solved from ``line_guess``
     with ``solve(guess, duration, path_bounds)``); ``lines``: ``line_guess`` itself;
     ``composed``: the composed joint path (``composed_guess()``). Which local solution
-    SNOPT reaches from one start moves with the last bits of the plan (on transferring,
-    seed 11, a perturbation of 1e-9 rad turned the plain motion's 3.50 s into a refused
-    motion and the plan fell to the composed path's 3.95 s); the choice among several
-    starts moves far less (``_choice``). From the composed path SNOPT lands in poor local
-    solutions where the demonstrations detour (assembling: 4.60 s against 3.66 s from the
-    plain motion), and over the paper trials it was never the start chosen when another
-    passed: it is the fallback, where neither of the others gives a motion that passes."""
+    SNOPT reaches from one start moves with the last bits of the plan; the choice among
+    several starts moves far less (``_choice``). From the composed path SNOPT lands in
+    poor local solutions where the demonstrations detour, and where another start passed
+    it was not the one chosen: it is the fallback, where neither of the others gives a
+    motion that passes (docs/method.rst, Several starts, one fixed choice)."""
     if method == "plain":
         yield "plain", line_guess, _duration_guess(line_guess, limits), None
         return
