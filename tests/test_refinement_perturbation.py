@@ -7,7 +7,7 @@ benchmark's ``--seeds`` default).
 The fast test takes the trials where one start of the program, or the shortest of
 several, moved most with such a perturbation (transferring seeds 1 and 11, filling and
 pouring seed 13) and assembling; the slow-marked one takes all 60 (assembling has no
-variables: its 20 trials are one plan, refined once and answered from memory after).
+variables: its 20 trials are one plan).
 """
 
 import numpy as np
