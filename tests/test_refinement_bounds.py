@@ -183,12 +183,7 @@ def test_a_refined_plan_keeps_a_tight_span_bound_or_the_composed_plan_stands(tmp
     path = tmp_path / "tight.yaml"
     path.write_text(TENDING.read_text() + "refinement:\n  spans:\n"
                     "    - {between: [6, 7], position_m: 0.005, rotation_deg: 1}\n")
-    task = load_task(path)
-    trial = draw_trial(task, 0)
-    workcell = Workcell.of(trial)
-    checker = joint_path_checker(workcell, task.simulation)
-    composed = plan_composition(trial, library_features(Library.open("paper5")), PlanningOptions(),
-                                floor_z=workcell.planner_floor, checker=checker)
+    task, workcell, checker, composed = _composed_trial(path)
     assert composed.planned
     result = refine_plan(composed, checker, scene=OptimizationScene(workcell))
     report = result.refinement
@@ -212,6 +207,18 @@ def test_a_refined_plan_keeps_a_tight_span_bound_or_the_composed_plan_stands(tmp
     assert position <= 0.15 and rotation <= math.radians(30.0)
 
 
+def _composed_trial(path):
+    """The task file at ``path``, trial seed 0: its work cell, checker and composed plan
+    (``paper5``), as ``plan`` makes them."""
+    task = load_task(path)
+    trial = draw_trial(task, 0)
+    workcell = Workcell.of(trial)
+    checker = joint_path_checker(workcell, task.simulation)
+    composed = plan_composition(trial, library_features(Library.open("paper5")), PlanningOptions(),
+                                floor_z=workcell.planner_floor, checker=checker)
+    return task, workcell, checker, composed
+
+
 def _distance_to_polyline(p, points):
     start, step = points[:-1], np.diff(points, axis=0)
     u = np.clip(np.einsum("ij,ij->i", p - start, step) / np.maximum(np.einsum("ij,ij->i", step, step), 1e-300),
@@ -231,12 +238,7 @@ def test_a_refined_motion_that_breaks_a_path_constraint_is_refused(tmp_path, mon
     path = tmp_path / "free.yaml"
     path.write_text(TENDING.read_text().replace("tolerance_deg: 3}",
                                                 "tolerance_deg: 3, max_deviation: {rotation_deg: 180}}"))
-    task = load_task(path)
-    trial = draw_trial(task, 0)
-    workcell = Workcell.of(trial)
-    checker = joint_path_checker(workcell, task.simulation)
-    composed = plan_composition(trial, library_features(Library.open("paper5")), PlanningOptions(),
-                                floor_z=workcell.planner_floor, checker=checker)
+    task, workcell, checker, composed = _composed_trial(path)
     (constraint,) = task.path_constraints
 
     def turned(result, fractions, options):
