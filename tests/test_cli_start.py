@@ -75,7 +75,7 @@ def test_a_typo_d_task_key_is_refused_before_drake_loads(tmp_path, scenarios, co
     assert err.splitlines() == [
         f"drake-lfd {command}: error: {task}: critical_configuration: unknown key 'critical_configuration' "
         "(allowed: name, description, X_WB, X_tool0_E, angle_grid_deg, variables, critical_configurations, "
-        "obstacles, safety_shells, path_constraints, simulation, timing, tool, people, collaboration)"]
+        "obstacles, safety_shells, path_constraints, simulation, timing, refinement, tool, people, collaboration)"]
 
 
 def test_a_missing_task_file_and_a_bad_flag_are_refused_before_drake_loads(tmp_path, scenarios):

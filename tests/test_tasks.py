@@ -137,6 +137,10 @@ def test_full_schema_every_value_form():
     np.testing.assert_allclose(candidates[:, 1], np.linspace(-PI / 4, PI / 4, 4))
     assert trial.positions[0, 2] == trial.positions[1, 2]
     assert [box.name for box in trial.obstacles + trial.safety_shells] == ["table", "table_shell"]
+    assert task.path_constraints[0].max_deviation == tasks.DeviationBound(0.05, np.radians(5.0))
+    assert task.refinement == tasks.RefinementBounds(tasks.DeviationBound(0.1, np.radians(20.0)),
+                                                     (tasks.DeviationBound(0.02, None, 2, 3),))
+    assert trial.refinement is task.refinement
 
 
 # ----------------------------------------------------------------------- refusals

@@ -38,6 +38,10 @@ __all__ = [
     "PATH_CONSTRAINT_KINDS",
     "Box",
     "PathConstraint",
+    "DeviationBound",
+    "RefinementBounds",
+    "DEFAULT_REFINEMENT_POSITION_M",
+    "DEFAULT_REFINEMENT_ROTATION_RAD",
     "CriticalConfiguration",
     "Task",
     "ConcreteCriticalConfiguration",
@@ -53,6 +57,10 @@ __all__ = [
 DEFAULT_ANGLE_GRID_DEG = 15.0
 MIN_CRITICAL_CONFIGURATIONS = 2
 PATH_CONSTRAINT_KINDS = ("orientation",)
+#: How far ``--refine`` may move E from the composed path where the task file does not
+#: say (docs/method.rst, Refinement by trajectory optimization, measures the trade-off).
+DEFAULT_REFINEMENT_POSITION_M = 0.15
+DEFAULT_REFINEMENT_ROTATION_RAD = math.radians(30.0)
 
 
 def rigid_transform_from_euler_zyx(p, euler_zyx):
@@ -117,16 +125,50 @@ class Box:
         return self.centre + (signs * (self.size / 2.0)) @ self.rotation.T
 
 
+@dataclasses.dataclass(frozen=True)
+class DeviationBound:
+    """How far refinement (``--refine``) may move E from the composed path, at matching
+    path fractions: within ``position_m`` and ``rotation_rad`` (None: this bound leaves
+    that one to the wider bounds), from ``con_from`` to ``con_to`` (1-based, inclusive;
+    None for the whole task)."""
+
+    position_m: float | None = None
+    rotation_rad: float | None = None
+    con_from: int | None = None
+    con_to: int | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class RefinementBounds:
+    """The task file's ``refinement:`` block: ``max_deviation`` for the whole task (None
+    fields: :data:`DEFAULT_REFINEMENT_POSITION_M`, :data:`DEFAULT_REFINEMENT_ROTATION_RAD`,
+    or the refinement's options) and ``spans``, :class:`DeviationBound` s that replace it
+    from one critical configuration to another (the tighter where two overlap). A path
+    constraint bounds the rotation besides (:attr:`PathConstraint.max_deviation`)."""
+
+    max_deviation: DeviationBound = DeviationBound()
+    spans: tuple = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "spans", tuple(self.spans))
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class PathConstraint:
     """Keep the tool orientation within ``tolerance_rad`` of ``euler_zyx`` (3,) from
-    ``con_from`` to ``con_to`` (1-based, inclusive)."""
+    ``con_from`` to ``con_to`` (1-based, inclusive).
+
+    ``max_deviation`` bounds how far refinement may move E from the composed path over
+    the constraint's spans, on top of every other bound (a :class:`DeviationBound`; None:
+    the rotation within ``tolerance_rad``, the position as the other bounds say), so a
+    refined motion does not turn what the constraint holds still."""
 
     kind: str
     con_from: int
     con_to: int
     euler_zyx: np.ndarray
     tolerance_rad: float
+    max_deviation: DeviationBound | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "euler_zyx", read_only_array(self.euler_zyx, (3,)))
@@ -192,6 +234,8 @@ class Task:
     # (None: the defaults).
     people: tuple = ()
     collaboration: object = None
+    # The task file's ``refinement:`` block: a RefinementBounds (None: the defaults).
+    refinement: RefinementBounds | None = None
 
     def __len__(self):
         return len(self.critical_configurations)
@@ -261,6 +305,7 @@ class ConcreteTask:
     tool: tuple | None = None  # as Task.tool
     timing: object = None  # as Task.timing
     simulation: object = None  # as Task.simulation (the checker of drake_lfd.plan_task reads its margins)
+    refinement: RefinementBounds | None = None  # as Task.refinement
 
     def __post_init__(self):
         object.__setattr__(self, "critical_configurations", tuple(self.critical_configurations))
@@ -418,4 +463,5 @@ def draw_trial(task, seed):
         tool=task.tool,
         timing=task.timing,
         simulation=task.simulation,
+        refinement=task.refinement,
     )

@@ -29,6 +29,11 @@ Example, the paper's Table 8 (filling and pouring)::
       - {name: cup_1_shell, centre: [-0.4, -0.1, -0.05], size: [0.12, 0.12, 0.12]}
     path_constraints:     # judged on a run: tool orientation within tolerance from con to con
       - {kind: orientation, between: [2, 4], euler_zyx: [0, -pi/2, 0], tolerance_deg: 10}
+        # optional on a constraint: max_deviation: {position_m: 0.05, rotation_deg: 5}
+    refinement:           # how far --refine may move E from the composed path
+      max_deviation: {position_m: 0.15, rotation_deg: 30}   # the whole task; these are the defaults
+      spans:              # from con_j to con_k instead (the tighter where two overlap)
+        - {between: [4, 5], position_m: 0.02, rotation_deg: 3}
     tool:                 # shapes fixed to tool0; absent: a cylinder from the flange to E
       - {name: holder, cylinder: {radius: 0.03, length: 0.15}, p: [0, 0, 0.075]}
       - {name: cup, box: [0.08, 0.08, 0.1], p: [0, 0, 0.2]}
@@ -61,6 +66,16 @@ Values:
 - ``path_constraints[*].between: [j, k]`` are critical configuration numbers (1-based,
   ``j < k``); ``kind: orientation`` asks the tool orientation to stay within
   ``tolerance_deg`` of ``euler_zyx`` from con_j to con_k.
+- ``refinement``: how far refinement (``--refine``) may move E from the composed path, at
+  matching path fractions: ``position_m`` (metres, > 0) and ``rotation_deg`` (degrees, in
+  (0, 180]), each optional. ``max_deviation`` holds for the whole task (absent: 0.15 m and
+  30 deg); an entry of ``spans`` (``between: [j, k]`` as a path constraint's, and at least
+  one of the two) replaces it from con_j to con_k, so a span may be held tighter or let
+  wider. A path constraint bounds it besides, over its own spans: its ``max_deviation``
+  (the same two keys), or without one the rotation within its ``tolerance_deg``. The whole
+  task's position bound holds at matching path fractions; a span's own (from ``spans`` or a
+  path constraint) holds E within that distance of the composed span's path, wherever
+  along it (docs/task_files.rst, The refinement block).
 - Root keys starting with ``_`` are ignored (YAML anchors for reuse, as in Drake).
 
 Every problem is an :class:`~drake_lfd.core.errors.InputError` naming the file and the field
@@ -85,7 +100,9 @@ from drake_lfd.core.tasks import (
     PATH_CONSTRAINT_KINDS,
     Box,
     CriticalConfiguration,
+    DeviationBound,
     PathConstraint,
+    RefinementBounds,
     Task,
     rigid_transform_from_euler_zyx,
 )
@@ -363,25 +380,15 @@ def task_from_spec(spec, *, file=None):
                 file=file,
                 field=f"{base}.kind",
             )
-        if len(constraint.between) != 2:
-            raise InputError(
-                f"expected [j, k] (critical configuration numbers), got {len(constraint.between)} values",
-                file=file,
-                field=f"{base}.between",
-            )
-        first, last = (int(v) for v in constraint.between)
-        if not 1 <= first < last <= len(cons):
-            raise InputError(
-                f"[{first}, {last}] must satisfy 1 <= j < k <= {len(cons)} (con numbers start at 1)",
-                file=file,
-                field=f"{base}.between",
-            )
+        first, last = _between(constraint.between, len(cons), file=file, field=f"{base}.between")
         euler = vector(constraint.euler_zyx, 3, file=file, field=f"{base}.euler_zyx", convert=angle)
         tolerance = finite(constraint.tolerance_deg, file=file, field=f"{base}.tolerance_deg")
         if not 0.0 < tolerance <= 180.0:
             raise InputError(
                 f"must be in (0, 180] degrees, got {tolerance:g}", file=file, field=f"{base}.tolerance_deg"
             )
+        bound = _deviation(constraint.max_deviation.position_m, constraint.max_deviation.rotation_deg,
+                           file=file, field=f"{base}.max_deviation")
         constraints.append(
             PathConstraint(
                 kind=constraint.kind,
@@ -389,6 +396,7 @@ def task_from_spec(spec, *, file=None):
                 con_to=last,
                 euler_zyx=euler,
                 tolerance_rad=math.radians(tolerance),
+                max_deviation=None if bound == DeviationBound() else bound,
             )
         )
 
@@ -409,7 +417,52 @@ def task_from_spec(spec, *, file=None):
         timing=_timing(spec.timing, file=file),
         people=people_from_specs(spec.people, file=file),
         collaboration=None if spec.collaboration is None else collaboration_from_spec(spec.collaboration, file=file),
+        refinement=_refinement(spec.refinement, len(cons), file=file),
     )
+
+
+def _between(values, count, *, file, field):
+    """``between: [j, k]``: two critical configuration numbers, ``1 <= j < k <= count``."""
+    if len(values) != 2:
+        raise InputError(f"expected [j, k] (critical configuration numbers), got {len(values)} values",
+                         file=file, field=field)
+    first, last = (int(v) for v in values)
+    if not 1 <= first < last <= count:
+        raise InputError(f"[{first}, {last}] must satisfy 1 <= j < k <= {count} (con numbers start at 1)",
+                         file=file, field=field)
+    return first, last
+
+
+def _deviation(position_m, rotation_deg, *, file, field, con_from=None, con_to=None):
+    """A checked bound on refinement's deviation: ``position_m`` > 0 (metres, within
+    reach), ``rotation_deg`` in (0, 180]; either may be absent (None)."""
+    position = rotation = None
+    if position_m is not None:
+        position = _positive(coordinate(position_m, file=file, field=f"{field}.position_m"), file=file,
+                             field=f"{field}.position_m")
+    if rotation_deg is not None:
+        degrees = finite(rotation_deg, file=file, field=f"{field}.rotation_deg")
+        if not 0.0 < degrees <= 180.0:
+            raise InputError(f"must be in (0, 180] degrees, got {degrees:g}", file=file, field=f"{field}.rotation_deg")
+        rotation = math.radians(degrees)
+    return DeviationBound(position_m=position, rotation_rad=rotation, con_from=con_from, con_to=con_to)
+
+
+def _refinement(spec, count, *, file):
+    """The checked ``refinement:`` block (None when it sets nothing)."""
+    whole = _deviation(spec.max_deviation.position_m, spec.max_deviation.rotation_deg, file=file,
+                       field="refinement.max_deviation")
+    spans = []
+    for index, span in enumerate(spec.spans):
+        field = f"refinement.spans[{index}]"
+        first, last = _between(span.between, count, file=file, field=f"{field}.between")
+        if span.position_m is None and span.rotation_deg is None:
+            raise InputError("give position_m, rotation_deg or both", file=file, field=field)
+        spans.append(_deviation(span.position_m, span.rotation_deg, file=file, field=field, con_from=first,
+                                con_to=last))
+    if whole == DeviationBound() and not spans:
+        return None
+    return RefinementBounds(max_deviation=whole, spans=tuple(spans))
 
 
 def _timing(spec, *, file):

@@ -26,6 +26,9 @@ __all__ = [
     "CylinderSpec",
     "ToolShapeSpec",
     "PathConstraintSpec",
+    "DeviationSpec",
+    "RefinementSpanSpec",
+    "RefinementSpec",
     "TimingSpec",
     "TaskSpec",
     "TASK_FILE_WORDS",
@@ -108,6 +111,17 @@ class ToolShapeSpec:
 
 
 @dataclasses.dataclass
+class DeviationSpec:
+    """How far refinement may move E from the composed path: metres and degrees (each
+    absent: as the wider bounds say)."""
+
+    position_m: Optional[float] = dataclasses.field(
+        default=None, metadata={"expected": "a number (metres), or absent"})
+    rotation_deg: Optional[float] = dataclasses.field(
+        default=None, metadata={"expected": "a number (degrees), or absent"})
+
+
+@dataclasses.dataclass
 class PathConstraintSpec:
     """A constraint judged on a run between two critical configurations (1-based)."""
 
@@ -115,6 +129,24 @@ class PathConstraintSpec:
     between: list[int] = required(list)
     euler_zyx: list[Scalar] = required(list)
     tolerance_deg: float = required(float)
+    # Absent (or its rotation_deg): refinement keeps the rotation within tolerance_deg of the
+    # composed path here.
+    max_deviation: DeviationSpec = dataclasses.field(default_factory=DeviationSpec)
+
+
+@dataclasses.dataclass
+class RefinementSpanSpec(DeviationSpec):
+    """An entry of ``refinement.spans``: the bound from con_j to con_k."""
+
+    between: list[int] = required(list)
+
+
+@dataclasses.dataclass
+class RefinementSpec:
+    """The ``refinement:`` block (:mod:`drake_lfd.io.task_files`)."""
+
+    max_deviation: DeviationSpec = dataclasses.field(default_factory=DeviationSpec)
+    spans: list[RefinementSpanSpec] = dataclasses.field(default_factory=list)
 
 
 @dataclasses.dataclass
@@ -150,6 +182,7 @@ class TaskSpec:
     # (io/task_files.py's TaskSpec types it as a PipelineConfig); here only as a mapping.
     simulation: dict[str, Any] = dataclasses.field(default_factory=dict)
     timing: TimingSpec = dataclasses.field(default_factory=TimingSpec)
+    refinement: RefinementSpec = dataclasses.field(default_factory=RefinementSpec)
     # Absent (None): the default tool sized from X_tool0_E; [] for no tool geometry.
     tool: Optional[list[ToolShapeSpec]] = dataclasses.field(
         default=None, metadata={"expected": "a list of tool shapes ([] for none)"})

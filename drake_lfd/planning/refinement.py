@@ -6,29 +6,37 @@ joint path) and optimizes a joint trajectory around it (docs/method.rst, Refinem
 by trajectory optimization): each critical configuration is pinned at the path
 fraction where the composed plan reaches it (its configuration there, on the composed
 joint path, fixes the IK branch), and the motion must stay in a tube around the mapped
-demonstrations (E within
-``tube_position_m`` and ``tube_rotation_rad`` of the composed SE(3) path at the matching
-path fraction; within each span the fraction is matched by arc length), keep the task's
-path constraints, the joint limits, speed and acceleration bounds, the tool speed and the
+demonstrations (E within the task's bounds of the composed SE(3) path: by default
+``tube_position_m`` and ``tube_rotation_rad`` at the matching path fraction, within each
+span matched by arc length; the task file's ``refinement:`` block and its path
+constraints bound it span by span, :func:`allowed_deviations`), keep the task's path
+constraints, the joint limits, speed and acceleration bounds, the tool speed and the
 clearance (:mod:`drake_lfd.robot.trajectory_optimization`), in minimum time. The result
 is verified like any plan: sampled at the controller's period, timed as a
 :class:`~drake_lfd.core.timing.TimedPlan` (E's poses by forward kinematics, critical
 indices at the samples where each critical configuration is due) and followed by the
-:class:`~drake_lfd.robot.joint_path.JointPathChecker`; the path constraints and the
-tube are checked on the followed joint path. The tube program starts from the plain
-program's motion (the same program without the tube, from straight joint-space lines),
-and from the composed joint path where that start's motion fails a check
-(:func:`_starts`). When the optimizer fails or any check fails, the unrefined plan
-stands and the report says why. The solve is bounded by
-SNOPT's iteration counts (:class:`SolverBudget`), never by time, and the bounds are
-the task's ``timing:`` limits at its ``limit_fraction``: the same inputs give the same
-plan on any machine under any load.
+:class:`~drake_lfd.robot.joint_path.JointPathChecker` holding the task's path
+constraints (:mod:`drake_lfd.robot.path_constraints`, the measure the search holds
+composed plans to); the task's bounds are checked on the followed joint path, span by
+span. So a refined plan never breaks a path constraint or a bound: when the optimizer
+fails or any check fails, the composed plan (which the search checked) stands and the
+report says why.
+
+Which local solution SNOPT reaches depends on where it starts, and from one start on the
+last bits of the plan; so the tube program runs from several deterministic starts
+(:func:`_starts`) and the plan takes a fixed choice among the motions that pass
+(:func:`_choice`), with a small path-energy cost that makes the minimum of each start
+unique where the duration alone leaves the shape free. The solve is bounded by SNOPT's
+iteration counts (:class:`SolverBudget`) per solve and a fixed number of solves, never
+by time, and the bounds are the task's ``timing:`` limits at its ``limit_fraction``:
+the same inputs give the same plan on any machine under any load.
 
 :func:`plain_plan` is the peer without demonstrations: the same program and checks, from
-a straight joint-space line between the composed plan's start and goal configurations,
-with no tube.
+straight joint-space lines between the composed path's configurations at the critical
+configurations, with no tube and a duration cost alone.
 
-Not for: composing demonstrations (``planner.py``) or the Drake program itself
+Not for: composing demonstrations (``planner.py``), the path-constraint measure
+(``robot/path_constraints.py``) or the Drake program itself
 (``robot/trajectory_optimization.py``).
 """
 
@@ -40,14 +48,20 @@ import math
 import time
 
 import numpy as np
-from pydrake.math import BsplineBasis
+from pydrake.math import BsplineBasis, RotationMatrix
 from pydrake.trajectories import BsplineTrajectory, PiecewisePose
 
 from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
-from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
+from drake_lfd.core.tasks import (
+    DEFAULT_REFINEMENT_POSITION_M,
+    DEFAULT_REFINEMENT_ROTATION_RAD,
+    DeviationBound,
+    RefinementBounds,
+)
 from drake_lfd.core.timing import TimedPlan, TimingLimits
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.robot.joint_path import JointPathChecker
+from drake_lfd.robot.path_constraints import allowed_deviation, constraint_rotation, describe_constraint
 from drake_lfd.robot.trajectory_optimization import (
     OptimizationScene,
     PoseBound,
@@ -82,7 +96,9 @@ class RefinementOptions:
     ----------
     tube_position_m, tube_rotation_rad : float
         The tube: E within this distance and angle of the composed path at the matching
-        path fraction (0.15 m, 30 deg), checked on the followed joint path.
+        path fraction (0.15 m, 30 deg), checked on the followed joint path, where the
+        task file does not bound it (its ``refinement:`` block and path constraints,
+        :func:`allowed_deviations`).
     tube_margin : float
         The program bounds the tube at this fraction of it (0.8): its samples leave
         room for the path between them and for the controller.
@@ -123,15 +139,15 @@ class RefinementOptions:
         it in the program already, makes the refined motions markedly slower). None, or
         ``pass_speed_m_s`` None: no such bound.
     path_constraint_margin_rad : float
-        A path constraint's tolerance is tightened by this in the program (3 deg).
+        The program holds each path constraint to what the check allows
+        (:func:`~drake_lfd.robot.path_constraints.allowed_deviation`, the measure the
+        search uses: its tolerance less the closed loop's tracking margin) less this
+        (1.5 deg), but at least half of that: the constraint holds only at the program's
+        samples, and the motion between them must keep it too.
     path_constraint_samples : int
         Path fractions each path constraint is constrained at, per span it covers (9;
-        with 6, 2 of 10 transferring plans tilted 9.0-9.4 deg between samples).
-    path_constraint_check_margin_rad : float
-        The check of the result holds each path constraint to its tolerance less this
-        (1.5 deg): the closed loop tracks the motion with some lag, and a refined
-        transferring trial (seed 2) followed within 10 deg at plan time reached 10.1 deg
-        in closed loop.
+        with 6, 2 of 10 transferring plans tilted 9.0-9.4 deg between samples); also the
+        tube's extra samples in each span the task bounds more tightly than the whole.
     num_control_points : int, optional
         B-spline control points (cubic; None: 6 plus 3 per span, so that after the ends'
         zero velocity and acceleration each span keeps about 3 free ones; when SNOPT
@@ -147,11 +163,34 @@ class RefinementOptions:
     limits : TrajectoryLimits, optional
         The program's bounds (None: the task's ``timing:`` block at its
         ``limit_fraction``, :meth:`TrajectoryLimits.of_timing`, so the refined motion
-        uses the same share of the limits as the composed plan's timing).
+        uses the same share of the limits as the composed plan's timing, with
+        ``clearance_m``).
+    clearance_m : float
+        The program's clearance when ``limits`` is None (3 cm; the check demands 1 cm on
+        the followed path, which lags the motion where it is fast and passes between the
+        program's samples, so the program keeps more).
+    repair_clearance_m : float
+        A tube program's motion that fails the check for a collision is solved once more
+        from itself with this much more clearance (2 cm; 0: never): otherwise whether a
+        start passes a shell a hair inside or outside the clearance decides, with the
+        plan's last bits, which start the plan takes.
+    starts, fallback_starts : tuple of str
+        The tube program's starts, in order, and those tried only when none of them gives
+        a motion that passes (``_starts``).
+    energy_weight : float
+        Weight of the path-energy cost beside the duration's in the tube program and
+        the plain program that starts it (1e-3, in seconds per rad^2 of the control
+        points' steps: a tie-breaker, not a trade). Without it the minimum-time program
+        leaves the shape free where the duration does not bind it, so starts reached
+        equal durations along shapes the slow passage of the critical configurations
+        retimes differently.
+    equal_duration : float
+        Program durations within this fraction of the shortest are equal for the choice
+        among starts (``_choice``; 0.005).
     """
 
-    tube_position_m: float = 0.15
-    tube_rotation_rad: float = math.radians(30.0)
+    tube_position_m: float = DEFAULT_REFINEMENT_POSITION_M
+    tube_rotation_rad: float = DEFAULT_REFINEMENT_ROTATION_RAD
     tube_margin: float = 0.8
     tube_samples: int = 15
     con_position_tolerance_m: float = 0.0007
@@ -161,13 +200,18 @@ class RefinementOptions:
     pass_speed_m_s: float | None = 0.4
     pass_acceleration_m_s2: float | None = 1.5
     program_pass_speed_m_s: float | None = 0.4
-    path_constraint_margin_rad: float = math.radians(3.0)
+    path_constraint_margin_rad: float = math.radians(1.5)
     path_constraint_samples: int = 9
-    path_constraint_check_margin_rad: float = math.radians(1.5)
     num_control_points: int | None = None
     clearance_samples: int = 15
     budget: SolverBudget = SolverBudget()
     limits: TrajectoryLimits | None = None
+    clearance_m: float = 0.03
+    repair_clearance_m: float = 0.02
+    starts: tuple = ("plain motion", "lines")
+    fallback_starts: tuple = ("composed",)
+    energy_weight: float = 1e-3
+    equal_duration: float = 0.005
 
 
 @dataclasses.dataclass(frozen=True)
@@ -201,9 +245,9 @@ class RefinementReport:
         Evaluations of the programs by SNOPT, all solves (the work done: the same on
         any machine, and the same when the scene remembered a solve).
     attempts : int
-        SNOPT solves: 2 (the plain program, then the tube program from its motion), 3
-        when the tube program also started from the composed path, up to 6 with a
-        second round (``plain``: 1 or 2).
+        SNOPT solves: the plain program, then the tube program from each start (one more
+        for each motion repaired for its clearance), twice that with a second round
+        (``plain``: 1 or 2).
     budget_spent : bool
         The motion is SNOPT's last iterate at its iteration limit (checked like a
         solution).
@@ -308,12 +352,18 @@ def path_fractions_of(plan: TimedPlan) -> np.ndarray:
 def tube_deviation(reference_plan: TimedPlan, fractions: np.ndarray, X_WE: list) -> tuple[float, float]:
     """Largest distance and angle of the poses ``X_WE`` at path fractions ``fractions``
     from ``reference_plan``'s path at the same fractions (see :class:`_Reference`)."""
-    reference = _Reference(reference_plan)
-    position, rotation = 0.0, 0.0
-    for s, X in zip(fractions, X_WE):
+    position, rotation = _deviations(_Reference(reference_plan), fractions, X_WE)
+    return float(position.max(initial=0.0)), float(rotation.max(initial=0.0))
+
+
+def _deviations(reference: _Reference, fractions: np.ndarray, X_WE: list) -> tuple[np.ndarray, np.ndarray]:
+    """The distance and the angle (m,) of each pose of ``X_WE`` from the reference path at
+    its path fraction."""
+    position, rotation = np.zeros(len(X_WE)), np.zeros(len(X_WE))
+    for k, (s, X) in enumerate(zip(fractions, X_WE)):
         R = reference.pose(s)
-        position = max(position, float(np.linalg.norm(X.translation() - R.translation())))
-        rotation = max(rotation, float(X.rotation().inverse().multiply(R.rotation()).ToAngleAxis().angle()))
+        position[k] = np.linalg.norm(X.translation() - R.translation())
+        rotation[k] = X.rotation().inverse().multiply(R.rotation()).ToAngleAxis().angle()
     return position, rotation
 
 
@@ -338,46 +388,141 @@ def shape_deviation(reference_plan: TimedPlan, X_WE: list) -> tuple[float, float
 # -- the program and its check ------------------------------------------------------------
 
 def _path_constraint_bounds(result: PlanResult, fractions: np.ndarray, options: RefinementOptions) -> list[PoseBound]:
+    """Each path constraint at ``path_constraint_samples`` fractions per span it covers:
+    within what the check allows (:func:`~drake_lfd.robot.path_constraints.allowed_deviation`)
+    less ``path_constraint_margin_rad``, but at least half of that."""
     bounds = []
     for constraint in result.task.path_constraints:
         if constraint.kind != "orientation":
             continue
-        R = rigid_transform_from_euler_zyx(np.zeros(3), constraint.euler_zyx).rotation()
-        angle = max(constraint.tolerance_rad - options.path_constraint_margin_rad, 0.5 * constraint.tolerance_rad)
+        R = RotationMatrix(constraint_rotation(constraint))
+        checked = allowed_deviation(constraint)
+        angle = max(checked - options.path_constraint_margin_rad, 0.5 * checked)
         a, b = fractions[constraint.con_from - 1], fractions[constraint.con_to - 1]
         count = options.path_constraint_samples * (constraint.con_to - constraint.con_from) + 1
         bounds += [PoseBound(float(s), R_WE=R, angle_rad=angle) for s in np.linspace(a, b, count)]
     return bounds
 
 
-def _tube_bounds(reference: _Reference, options: RefinementOptions) -> list[PoseBound]:
-    bounds = []
+@dataclasses.dataclass(frozen=True)
+class _Allowed:
+    """How far the refined motion may move E from the composed path: one distance and
+    one angle per span (con_j to con_j+1, arrays (n - 1,)), and which bound of the task
+    sets each (``sources``: (position, rotation) names per span)."""
+
+    fractions: np.ndarray
+    position_m: np.ndarray
+    rotation_rad: np.ndarray
+    sources: tuple
+
+    def at(self, s) -> tuple[np.ndarray, np.ndarray]:
+        """The distance and angle allowed at path fractions ``s`` (m,): their span's; at
+        a critical configuration between two spans, the tighter of the two."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        last = len(self.position_m) - 1
+        j = np.clip(np.searchsorted(self.fractions, s, side="right") - 1, 0, last)
+        position, rotation = self.position_m[j].copy(), self.rotation_rad[j].copy()
+        on = (j > 0) & (np.abs(s - self.fractions[j]) <= 1e-12)
+        position[on] = np.minimum(position[on], self.position_m[j[on] - 1])
+        rotation[on] = np.minimum(rotation[on], self.rotation_rad[j[on] - 1])
+        return position, rotation
+
+    def span_of(self, s) -> np.ndarray:
+        """The span (0-based) of each path fraction of ``s``."""
+        return np.clip(np.searchsorted(self.fractions, s, side="right") - 1, 0, len(self.position_m) - 1)
+
+    @property
+    def by_shape(self) -> np.ndarray:
+        """Per span: its position bound is the task's for that span (a ``spans`` entry or
+        a path constraint), held to the composed span's shape (E within the distance of
+        the composed span's path, wherever along it) rather than to where the composed
+        plan is at the same path fraction, as the whole task's tube is. A tight bound at
+        matching fractions would hold the timing along the span too: a motion that must
+        come to rest at a critical configuration lags a reference moving uniformly in the
+        path fraction, and no faster motion keeps a tight bound there."""
+        return np.array([not source[0].startswith(("refinement.max_deviation", "the default"))
+                         for source in self.sources], dtype=bool)
+
+
+def allowed_deviations(task, options: RefinementOptions = None) -> tuple[np.ndarray, np.ndarray]:
+    """How far refinement may move E from the composed path over each span of ``task``
+    (con_j to con_j+1): distances and angles (n - 1,), from the task's ``refinement``
+    block, its path constraints and ``options``' tube (docs/task_files.rst)."""
+    allowed = _allowed(task, np.linspace(0.0, 1.0, len(task.critical_configurations)),
+                       options or RefinementOptions())
+    return allowed.position_m, allowed.rotation_rad
+
+
+def _allowed(task, fractions: np.ndarray, options: RefinementOptions) -> _Allowed:
+    """The task file's bounds on the refinement (docs/task_files.rst): ``refinement.max_deviation``
+    for the whole task (absent fields: ``options``' tube), replaced over a span by each
+    entry of ``refinement.spans`` that covers it (the tighter of several), then tightened by
+    each path constraint over its spans (its ``max_deviation``; its rotation within its
+    tolerance unless that says otherwise)."""
+    spans = len(fractions) - 1
+    bounds = getattr(task, "refinement", None) or RefinementBounds()
+    whole = bounds.max_deviation
+    values = [np.full(spans, whole.position_m if whole.position_m is not None else options.tube_position_m),
+              np.full(spans, whole.rotation_rad if whole.rotation_rad is not None else options.tube_rotation_rad)]
+    sources = [["refinement.max_deviation" if value is not None else "the default"] * spans
+               for value in (whole.position_m, whole.rotation_rad)]
+    replaced = [np.full(spans, np.inf), np.full(spans, np.inf)]
+    replaced_by = [[None] * spans, [None] * spans]
+    for index, span in enumerate(bounds.spans):
+        for axis, value in enumerate((span.position_m, span.rotation_rad)):
+            for j in range(span.con_from - 1, span.con_to - 1):
+                if value is not None and value < replaced[axis][j]:
+                    replaced[axis][j], replaced_by[axis][j] = value, f"refinement.spans[{index}]"
+    for axis in range(2):
+        for j in range(spans):
+            if replaced_by[axis][j] is not None:
+                values[axis][j], sources[axis][j] = replaced[axis][j], replaced_by[axis][j]
+    for constraint in task.path_constraints:
+        bound = constraint.max_deviation or DeviationBound()
+        rotation = bound.rotation_rad if bound.rotation_rad is not None else constraint.tolerance_rad
+        for axis, value in enumerate((bound.position_m, rotation)):
+            for j in range(constraint.con_from - 1, constraint.con_to - 1):
+                if value is not None and value < values[axis][j]:
+                    values[axis][j], sources[axis][j] = value, describe_constraint(constraint)
+    return _Allowed(np.asarray(fractions, dtype=float), values[0], values[1],
+                    tuple(zip(sources[0], sources[1])))
+
+
+def _tube_bounds(reference: _Reference, options: RefinementOptions, allowed: _Allowed | None = None) -> list[PoseBound]:
+    """The tube in the program: E within ``tube_margin`` of the allowed deviation from the
+    composed path at ``tube_samples`` fractions evenly in ``s`` and as many evenly along
+    its arc length, and at ``path_constraint_samples`` inner fractions of each span the
+    task bounds more tightly than the whole (a short span with its own bound would
+    otherwise hold hardly a sample)."""
+    if allowed is None:
+        allowed = _Allowed(reference.fractions, np.full(len(reference.fractions) - 1, options.tube_position_m),
+                           np.full(len(reference.fractions) - 1, options.tube_rotation_rad), ())
     evenly_in_s = np.linspace(0.0, 1.0, options.tube_samples + 2)[1:-1]
-    for s in np.union1d(evenly_in_s, reference.evenly_along(options.tube_samples)):
+    samples = np.union1d(evenly_in_s, reference.evenly_along(options.tube_samples))
+    widest = (allowed.position_m.max(), allowed.rotation_rad.max())
+    for j in range(len(allowed.position_m)):
+        if allowed.position_m[j] < widest[0] or allowed.rotation_rad[j] < widest[1]:
+            a, b = allowed.fractions[j], allowed.fractions[j + 1]
+            samples = np.union1d(samples, np.linspace(a, b, options.path_constraint_samples + 2)[1:-1])
+    position, rotation = allowed.at(samples)
+    shaped = allowed.by_shape[allowed.span_of(samples)] if allowed.sources else np.zeros(len(samples), bool)
+    bounds = []
+    for s, radius, angle, along in zip(samples, position, rotation, shaped):
         X = reference.pose(s)
-        bounds.append(PoseBound(float(s), p_W=X.translation(), radius_m=options.tube_margin * options.tube_position_m,
-                                R_WE=X.rotation(), angle_rad=options.tube_margin * options.tube_rotation_rad))
+        line = {}
+        if along:
+            # Along the composed span's local direction, as far as the span is long.
+            j = int(allowed.span_of(s))
+            a, b = reference.pose(allowed.fractions[j]), reference.pose(allowed.fractions[j + 1])
+            ds = 0.01 * (allowed.fractions[j + 1] - allowed.fractions[j])
+            tangent = reference.pose(min(s + ds, allowed.fractions[j + 1])).translation() - \
+                reference.pose(max(s - ds, allowed.fractions[j])).translation()
+            length = float(np.linalg.norm(b.translation() - a.translation()))
+            if np.linalg.norm(tangent) > 1e-9 and length > 0.0:
+                line = {"direction_W": tangent / np.linalg.norm(tangent), "along_m": length}
+        bounds.append(PoseBound(float(s), p_W=X.translation(), radius_m=options.tube_margin * float(radius),
+                                R_WE=X.rotation(), angle_rad=options.tube_margin * float(angle), **line))
     return bounds
-
-
-def _path_constraint_violation(result: PlanResult, plan: TimedPlan, X_WE: list, times: np.ndarray,
-                               margin_rad: float) -> str | None:
-    """The first path constraint the followed poses break by more than its tolerance less
-    ``margin_rad``, as a reason; else None."""
-    due = [plan.times[i] for i in plan.critical_indices]
-    for constraint in result.task.path_constraints:
-        if constraint.kind != "orientation":
-            continue
-        R = rigid_transform_from_euler_zyx(np.zeros(3), constraint.euler_zyx).rotation()
-        t_from, t_to = due[constraint.con_from - 1], due[constraint.con_to - 1]
-        angles = [X.rotation().inverse().multiply(R).ToAngleAxis().angle()
-                  for X, t in zip(X_WE, times) if t_from - 1e-9 <= t <= t_to + 1e-9]
-        allowed = constraint.tolerance_rad - margin_rad
-        if angles and max(angles) > allowed:
-            return (f"path constraint con_{constraint.con_from}..con_{constraint.con_to}: tool orientation "
-                    f"{math.degrees(max(angles)):.1f} deg > {math.degrees(allowed):g} deg (the constraint's "
-                    f"{math.degrees(constraint.tolerance_rad):g} less the closed loop's tracking margin)")
-    return None
 
 
 def _fractions_by_joint_arc_length(t: np.ndarray, q: np.ndarray, due: list, fractions: np.ndarray) -> np.ndarray:
@@ -446,7 +591,8 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     s_path = _fractions_by_joint_arc_length(path.t[within], q_path, [timed.times[i] for i in timed.critical_indices],
                                             fractions)
     path_bounds = _path_constraint_bounds(result, fractions, options)
-    bounds = path_bounds + (_tube_bounds(reference, options) if method == "refine" else [])
+    allowed = _allowed(result.task, fractions, options)
+    bounds = path_bounds + (_tube_bounds(reference, options, allowed) if method == "refine" else [])
     # Each inner critical configuration's configuration on the composed joint path (the
     # pass-speed bound is linearized there).
     q_due = [q_path[min(int(np.searchsorted(s_path, f)), len(q_path) - 1)] for f in fractions[1:-1]]
@@ -454,17 +600,19 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     targets = [PoseTarget(float(s), X, options.con_position_tolerance_m, options.con_rotation_tolerance_rad,
                           pass_speed, q)
                for s, X, q in zip(fractions[1:-1], reference.critical_poses[1:-1], q_due)]
-    limits = options.limits or TrajectoryLimits.of_timing(result.task.timing or TimingLimits())
+    limits = options.limits or TrajectoryLimits.of_timing(result.task.timing or TimingLimits(),
+                                                          clearance_m=options.clearance_m)
     count = options.num_control_points or 6 + 3 * (len(fractions) - 1)
     pins = list(zip(fractions[1:-1], q_due))
     lines = _through_critical_configurations(fractions, q_path[0], q_due, q_goal)
     solve_time = 0.0
 
-    def solve(guess, duration, program_bounds):
+    def solve(guess, duration, program_bounds, program_limits=None):
         nonlocal solve_time
         solved = optimize_joint_trajectory(
             scene, guess, guess_duration_s=duration, targets=targets, bounds=program_bounds,
-            clearance_samples=options.clearance_samples, limits=limits, budget=options.budget)
+            clearance_samples=options.clearance_samples, limits=program_limits or limits, budget=options.budget,
+            energy_weight=options.energy_weight if method == "refine" else 0.0)
         solve_time += solved.solve_time_s
         work["evaluations"] += solved.evaluations
         work["attempts"] += 1
@@ -472,33 +620,49 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
 
     # Up to two rounds, the second with 1.5 times the control points (a spline too stiff
     # for the tube is a usual cause of an infeasible program; and a different program is
-    # a fresh chance where SNOPT ended in a poor local solution); in each, the program
-    # from each start of ``_starts`` in turn, until a motion passes every check. A fixed
-    # number of solves at most, so the work stays bounded and the answer deterministic.
+    # a fresh chance where SNOPT ended in poor local solutions). In each, the program from
+    # every start of ``_starts`` (a motion through the clearance once more, with more
+    # clearance), then the choice among the motions that pass every check (``_choice``).
+    # A fixed number of solves at most, each within the iteration budget, so the work
+    # stays bounded and the answer deterministic.
     rounds = (count,) if options.num_control_points else (count, count + count // 2)
+    repair_limits = dataclasses.replace(limits, clearance_m=limits.clearance_m + options.repair_clearance_m)
     for attempt in rounds:
-        failures = []
+        failures, passed = [], []
         line_guess = fit_bspline(*lines, attempt, rest_ends=True, pins=pins)
         composed = functools.partial(fit_bspline, s_path, q_path, attempt, rest_ends=True, pins=pins)
-        for label, guess, duration, first in _starts(method, line_guess, composed, limits, solve, path_bounds):
+        for label, guess, duration, first in _starts(method, line_guess, composed, limits, solve, path_bounds,
+                                                     options.starts, options.fallback_starts, passed):
             solved = first if guess is None else solve(guess, duration, bounds)
+            checked = None
+            if solved.trajectory is not None and not solved.safety_stopped:
+                work["budget_spent"] = solved.budget_spent
+                checked = _check_motion(result, checker, scene, solved, allowed, limits, options, method)
+                if method == "refine" and options.repair_clearance_m > 0 and \
+                        (checked.reason or "").startswith("check: collision"):
+                    # Through the clearance where the program does not look (between its
+                    # samples, or where the followed path lags the motion).
+                    repaired = solve(*_in_path_fraction(solved.trajectory), bounds, repair_limits)
+                    if repaired.trajectory is not None and not repaired.safety_stopped:
+                        again = _check_motion(result, checker, scene, repaired, allowed, limits, options, method)
+                        if again.reason is None:
+                            solved, checked = repaired, again
+                    elif repaired.safety_stopped:
+                        solved = repaired
             if solved.safety_stopped:
                 return dataclasses.replace(result, refinement=report("failed", f"error: {solved.status}", solve_time))
-            if solved.trajectory is None:
+            if checked is None:
                 failures.append((label, f"optimizer: {solved.status}", None))
-                continue
+            elif checked.reason is None:
+                passed.append((solved, checked))
+            else:
+                failures.append((label, _with_iterate(checked.reason, solved), checked))
+        if passed:
+            solved, checked = _choice(passed, options)
             work["budget_spent"] = solved.budget_spent
-            checked = _check_motion(result, checker, scene, solved, fractions, limits, options, method)
-            if checked.reason is None:
-                return dataclasses.replace(result, timed=checked.plan, joint_path=checked.followed,
-                                           refinement=report("refined", "", solve_time, checked.plan.duration,
-                                                             checked.position, checked.rotation, checked.fractions))
-            reason = checked.reason
-            if solved.budget_spent:
-                reason = f"{reason}; SNOPT's last iterate at its {solved.status}"
-            elif solved.nearly_feasible:
-                reason = f"{reason}; SNOPT's last iterate, {solved.status}"
-            failures.append((label, reason, checked))
+            return dataclasses.replace(result, timed=checked.plan, joint_path=checked.followed,
+                                       refinement=report("refined", "", solve_time, checked.plan.duration,
+                                                         checked.position, checked.rotation, checked.fractions))
     # The last round's failures, in the starts' order: the first as it is, each other one
     # with the start it comes from.
     reason = "; ".join([failures[0][1]] + [f"{_START_NAMES[label]}: {text}" for label, text, _ in failures[1:]])
@@ -509,37 +673,73 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
                                                          checked.position, checked.rotation, checked.fractions))
 
 
+def _choice(passed: list, options: RefinementOptions) -> tuple:
+    """The motion the plan takes among ``passed`` (``(solved, checked)`` in the starts'
+    order, each passing every check): the first whose program duration is within
+    ``equal_duration`` of the shortest.
+
+    Not the shortest outright, nor by the retimed plan's duration: local solutions of
+    equal program duration (the same minimum reached along different shapes where the
+    duration does not bind them) are retimed differently by the slow passage of the
+    critical configurations, and which of them is the shortest flips with the last bits
+    of the plan; the starts' order does not."""
+    shortest = min(solved.duration for solved, _ in passed)
+    return next(pair for pair in passed if pair[0].duration <= (1.0 + options.equal_duration) * shortest)
+
+
+def _with_iterate(reason: str, solved) -> str:
+    """A failed check's reason, saying when the motion was SNOPT's last iterate."""
+    if solved.budget_spent:
+        return f"{reason}; SNOPT's last iterate at its {solved.status}"
+    if solved.nearly_feasible:
+        return f"{reason}; SNOPT's last iterate, {solved.status}"
+    return reason
+
+
 # How a failure reason names the start it comes from (``_starts``).
-_START_NAMES = {"plain motion": "from the plain program's motion", "composed": "from the composed path"}
+_START_NAMES = {"plain motion": "from the plain program's motion", "composed": "from the composed path",
+                "lines": "from straight joint-space lines"}
+#: Every start the tube program knows (``_starts``).
+STARTS = tuple(_START_NAMES)
 
 
-def _starts(method: str, line_guess, composed_guess, limits: TrajectoryLimits, solve, path_bounds):
-    """The program's starts, in the order they are tried, as ``(label, guess, duration,
-    None)``, or ``(label, None, None, answer)`` when the solve that makes a start gave
-    no motion (``answer``: that solve's). Lazy: a start is made only when the ones
-    before it gave no motion that passed the checks.
+def _starts(method: str, line_guess, composed_guess, limits: TrajectoryLimits, solve, path_bounds,
+            starts=("plain motion", "lines"), fallback=("composed",), passed=()):
+    """The program's starts, in order, as ``(label, guess, duration, None)``, or
+    ``(label, None, None, answer)`` when the solve that makes a start gave no motion
+    (``answer``: that solve's). Lazy: a start is made when the consumer asks for it.
 
     ``plain``: ``line_guess`` (straight joint-space lines through the composed path's
-    configurations at the critical configurations). ``refine``: first the plain
-    program's motion: the program without the tube (the same limits, targets and path
-    constraints), solved from ``line_guess`` with ``solve(guess, duration,
-    path_bounds)``; then the composed joint path (``composed_guess()``). From the
-    composed path SNOPT lands in poor local solutions where the demonstrations detour:
-    on assembling (``paper6``) the tube program from it ended at a 4.60 s motion, from
-    the plain program's motion (3.62 s, which the tube hardly changes) at 3.66 s; on
-    filling and pouring (seed 4) 6.54 s against 4.28 s. Where the plain program's
-    motion fails a check in the tube (transferring, seed 3: it struck a shell), the
-    composed path's start refines."""
+    configurations at the critical configurations). ``refine``: each of ``starts``, then
+    each of ``fallback`` while ``passed`` (the consumer's list of motions that passed the
+    checks) is empty. ``plain motion``: the plain program's motion (the program without
+    the tube, the same limits, targets and path constraints, solved from ``line_guess``
+    with ``solve(guess, duration, path_bounds)``); ``lines``: ``line_guess`` itself;
+    ``composed``: the composed joint path (``composed_guess()``). Which local solution
+    SNOPT reaches from one start moves with the last bits of the plan; the choice among
+    several starts moves far less (``_choice``). From the composed path SNOPT lands in
+    poor local solutions where the demonstrations detour, and where another start passed
+    it was not the one chosen: it is the fallback, where neither of the others gives a
+    motion that passes (docs/method.rst, Several starts, one fixed choice)."""
     if method == "plain":
         yield "plain", line_guess, _duration_guess(line_guess, limits), None
         return
-    plain = solve(line_guess, _duration_guess(line_guess, limits), path_bounds)
-    if plain.trajectory is None:
-        yield "plain motion", None, None, plain
-    else:
-        yield ("plain motion",) + _in_path_fraction(plain.trajectory) + (None,)
-    guess = composed_guess()
-    yield "composed", guess, _duration_guess(guess, limits), None
+    for label in tuple(starts) + tuple(fallback):
+        if label in fallback and label not in starts and passed:
+            return
+        if label == "plain motion":
+            plain = solve(line_guess, _duration_guess(line_guess, limits), path_bounds)
+            if plain.trajectory is None:
+                yield label, None, None, plain
+            else:
+                yield (label,) + _in_path_fraction(plain.trajectory) + (None,)
+        elif label == "composed":
+            guess = composed_guess()
+            yield label, guess, _duration_guess(guess, limits), None
+        elif label == "lines":
+            yield label, line_guess, _duration_guess(line_guess, limits), None
+        else:
+            raise ValueError(f"unknown start {label!r} (known: {', '.join(STARTS)})")
 
 
 def _in_path_fraction(trajectory: BsplineTrajectory) -> tuple[BsplineTrajectory, float]:
@@ -563,13 +763,14 @@ class _Checked:
 
 
 def _check_motion(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene, solved,
-                  fractions: np.ndarray, limits: TrajectoryLimits, options: RefinementOptions,
+                  allowed: _Allowed, limits: TrajectoryLimits, options: RefinementOptions,
                   method: str) -> _Checked:
     """Samples the solver's motion at the controller's period (module docstring), follows
-    it with ``checker`` and checks it: executable, every critical configuration within
-    ``check_fraction`` of the success tolerances, the path constraints, the tube
-    (``refine``) and shorter than the composed plan."""
-    timed, dt = result.timed, checker.time_step
+    it with ``checker`` holding the task's path constraints (as the search does) and
+    checks it: executable, every critical configuration within ``check_fraction`` of the
+    success tolerances, within the task's bounds on the deviation from the composed path
+    (``refine``; span by span, ``allowed``) and shorter than the composed plan."""
+    timed, dt, fractions = result.timed, checker.time_step, allowed.fractions
     t, q, X, indices, s_samples = sample_trajectory(scene, solved.trajectory, fractions, time_step=dt,
                                                     tool_speed_m_s=limits.tool_speed_m_s,
                                                     tool_acceleration_m_s2=limits.tool_acceleration_m_s2,
@@ -577,7 +778,7 @@ def _check_motion(result: PlanResult, checker: JointPathChecker, scene: Optimiza
                                                     pass_acceleration_m_s2=options.pass_acceleration_m_s2)
     poses = dual_quaternion_from_matrices(np.array([x.GetAsMatrix4() for x in X]))
     plan = TimedPlan(t, poses, tuple(indices))
-    followed = checker.follow(plan, q[0])
+    followed = checker.follow(plan, q[0], path_constraints=result.task.path_constraints)
     duration = plan.duration
 
     def checked(reason, position=math.nan, rotation=math.nan):
@@ -611,18 +812,70 @@ def _check_motion(result: PlanResult, checker: JointPathChecker, scene: Optimiza
                            f"success tolerances)")
     X_followed = [scene.X_WE(x) for x in followed.q]
     s_followed = np.interp(np.minimum(followed.t, duration), t, s_samples)
-    position, rotation = tube_deviation(timed, s_followed, X_followed)
-    violation = _path_constraint_violation(result, plan, X_followed, followed.t,
-                                           options.path_constraint_check_margin_rad)
-    if violation is not None:
-        return checked(f"check: {violation}", position, rotation)
-    if method == "refine" and (position > options.tube_position_m or rotation > options.tube_rotation_rad):
-        return checked(f"check: leaves the tube ({1000 * position:.0f} mm, {math.degrees(rotation):.1f} deg; "
-                       f"tube {1000 * options.tube_position_m:.0f} mm, "
-                       f"{math.degrees(options.tube_rotation_rad):.0f} deg)", position, rotation)
+    deviation = _deviations(_Reference(timed), s_followed, X_followed)
+    position, rotation = float(deviation[0].max(initial=0.0)), float(deviation[1].max(initial=0.0))
+    if method == "refine":
+        shaped = allowed.by_shape[allowed.span_of(s_followed)]
+        if shaped.any():
+            held = _span_deviations(timed, allowed.span_of(s_followed[shaped]), [x for x, k in zip(X_followed, shaped) if k])
+            deviation = (deviation[0].copy(), deviation[1].copy())
+            deviation[0][shaped] = held[0]
+        excess = _excess(allowed, s_followed, *deviation)
+        if excess is not None:
+            return checked(f"check: {excess}", position, rotation)
     if not duration < timed.duration:
         return checked(f"not shorter ({duration:.2f} s, unrefined {timed.duration:.2f} s)", position, rotation)
     return checked(None, position, rotation)
+
+
+def _span_deviations(composed: TimedPlan, spans: np.ndarray, X_WE: list) -> tuple[np.ndarray, np.ndarray]:
+    """The distance (m,) of each pose of ``X_WE`` from the composed plan's path over its
+    span (``spans``, 0-based: the segments between the composed samples from one critical
+    configuration to the next), and the angle to the composed rotation at the nearest
+    sample."""
+    X_ref = composed.X_WE_list()
+    p_ref = np.array([x.translation() for x in X_ref])
+    position, rotation = np.zeros(len(X_WE)), np.zeros(len(X_WE))
+    indices = composed.critical_indices
+    for k, (j, X) in enumerate(zip(spans, X_WE)):
+        a, b = indices[j], indices[j + 1]
+        start, end = p_ref[a:b], p_ref[a + 1:b + 1]
+        if not len(start):
+            start = end = p_ref[a:a + 1]
+        step = end - start
+        p = X.translation()
+        lengths = np.einsum("ij,ij->i", step, step)
+        u = np.clip(np.einsum("ij,ij->i", p - start, step) / np.where(lengths > 0, lengths, 1.0), 0.0, 1.0)
+        distances = np.linalg.norm(start + u[:, None] * step - p, axis=1)
+        m = int(np.argmin(distances))
+        position[k] = distances[m]
+        nearest = X_ref[a + m + (1 if u[m] > 0.5 else 0)] if b > a else X_ref[a]
+        rotation[k] = X.rotation().inverse().multiply(nearest.rotation()).ToAngleAxis().angle()
+    return position, rotation
+
+
+def _excess(allowed: _Allowed, s: np.ndarray, position: np.ndarray, rotation: np.ndarray) -> str | None:
+    """Where the followed motion (at path fractions ``s``, its deviations ``position`` and
+    ``rotation`` from the composed path) goes furthest beyond the task's bound, relative
+    to the bound, as a reason naming the span and the bound; None when it keeps every
+    bound."""
+    if not len(s):
+        return None
+    radius, angle = allowed.at(s)
+    over = np.maximum(position / radius, rotation / angle)
+    k = int(np.argmax(over))
+    if over[k] <= 1.0:
+        return None
+    j = int(allowed.span_of(s[k]))
+    axis = 0 if position[k] / radius[k] >= rotation[k] / angle[k] else 1
+    value, limit, unit = ((1000 * position[k], 1000 * radius[k], "mm") if axis == 0 else
+                          (math.degrees(rotation[k]), math.degrees(angle[k]), "deg"))
+    digits = 0 if axis == 0 else 1
+    while digits < 3 and round(value, digits) <= round(limit, digits):  # digits enough to show the excess
+        digits += 1
+    where = "from the composed span's path" if axis == 0 and allowed.by_shape[j] else "from the composed path"
+    return (f"moves {value:.{digits}f} {unit} {where} between con_{j + 1} and con_{j + 2} where "
+            f"{allowed.sources[j][axis]} allows {limit:g} {unit}")
 
 
 def refine_plan(result: PlanResult, checker: JointPathChecker, *, scene: OptimizationScene | None = None,

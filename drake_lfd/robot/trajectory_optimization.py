@@ -4,7 +4,9 @@
 ``KinematicTrajectoryOptimization`` (a clamped B-spline ``q(s)``, ``s`` in [0, 1], with a
 free duration ``T``; docs/method.rst, Refinement by trajectory optimization):
 
-- minimum duration (``AddDurationCost``), duration within bounds;
+- minimum duration (``AddDurationCost``), duration within bounds; optionally plus a small
+  path-energy cost (``AddPathEnergyCost``, ``energy_weight``), which makes the minimum unique
+  where the duration leaves the shape free;
 - joint position bounds: the UR5e's limits, narrowed for the elbow (q3) and the wrist
   (q5) to the singularity-free interval (``|sin q| >= margin``) the initial guess lies
   in; bounds on the control points hold on the whole path (convex hull);
@@ -215,13 +217,18 @@ class PoseTarget:
 @dataclasses.dataclass(frozen=True)
 class PoseBound:
     """At path fraction ``s``: E within ``radius_m`` of ``p_W`` (None: free) and within
-    ``angle_rad`` of ``R_WE`` (None: free)."""
+    ``angle_rad`` of ``R_WE`` (None: free). With ``direction_W`` (a unit vector), E within
+    ``radius_m`` of the line through ``p_W`` along it instead (a square of that half
+    diagonal across the line), at most ``along_m`` from ``p_W`` along it: a bound on
+    where E goes that leaves free how far along the way it is at ``s``."""
 
     s: float
     p_W: np.ndarray | None = None
     radius_m: float | None = None
     R_WE: RotationMatrix | None = None
     angle_rad: float | None = None
+    direction_W: np.ndarray | None = None
+    along_m: float | None = None
 
 
 class OptimizationScene:
@@ -237,7 +244,8 @@ class OptimizationScene:
         docstring); ``solutions.clear()`` forgets them.
     """
 
-    #: Programs remembered per scene (a plan solves at most six).
+    #: Programs remembered per scene (a refinement solves at most 14, two rounds of the plain
+    #: program and three starts, each repaired once).
     REMEMBERED_SOLUTIONS = 16
 
     def __init__(self, workcell: Workcell):
@@ -479,6 +487,7 @@ def optimize_joint_trajectory(
     clearance_samples: int = 40,
     limits: TrajectoryLimits = TrajectoryLimits(),
     budget: SolverBudget = SolverBudget(),
+    energy_weight: float = 0.0,
 ) -> OptimizedTrajectory:
     """Solves the program of the module docstring from ``guess`` (a B-spline in path
     fraction, on [0, 1], its ends the fixed start and goal configurations).
@@ -500,18 +509,22 @@ def optimize_joint_trajectory(
         ``Time limit`` option, so the safety stop is an exception raised in a
         visualization callback (called at each evaluation of the program), which Drake
         turns into SNOPT's "terminated during function evaluation".
+    energy_weight : float
+        Weight of ``AddPathEnergyCost`` beside the duration's (0: the duration alone).
 
     A program this scene solved before (the same inputs to the bit) is answered from
     ``scene.solutions``: the same answer, ``evaluations`` included (SNOPT's work for the
     program), with ``solve_time_s`` 0 (no solve ran). A solve the safety stop ended is
     not remembered.
     """
-    key = _program_key(guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget)
+    key = _program_key(guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget) + \
+        _numbers([energy_weight])
     solved = []
 
     def solve():
         solved.append(True)
-        return _solve(scene, guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget)
+        return _solve(scene, guess, guess_duration_s, targets, bounds, clearance_samples, limits, budget,
+                      energy_weight)
 
     # A safety-stopped solve depends on the clock: returned, not remembered.
     answer = scene.solutions.get(key, solve, keep=lambda answer: not answer.safety_stopped)
@@ -546,14 +559,15 @@ def _program_key(guess: BsplineTrajectory, guess_duration_s: float, targets: Seq
         fields += [target.s, target.X_WE, target.position_tolerance_m, target.rotation_tolerance_rad,
                    target.pass_speed_m_s, target.q_nominal]
     for bound in bounds:
-        fields += [bound.s, bound.p_W, bound.radius_m, bound.R_WE, bound.angle_rad]
+        fields += [bound.s, bound.p_W, bound.radius_m, bound.R_WE, bound.angle_rad, bound.direction_W,
+                   bound.along_m]
     fields += list(dataclasses.astuple(limits)) + list(dataclasses.astuple(budget))
     return _numbers(fields)
 
 
 def _solve(scene: OptimizationScene, guess: BsplineTrajectory, guess_duration_s: float,
            targets: Sequence[PoseTarget], bounds: Sequence[PoseBound], clearance_samples: int,
-           limits: TrajectoryLimits, budget: SolverBudget) -> OptimizedTrajectory:
+           limits: TrajectoryLimits, budget: SolverBudget, energy_weight: float = 0.0) -> OptimizedTrajectory:
     """:func:`optimize_joint_trajectory` without the memo."""
     plant, context, frame_E = scene.plant, scene.plant_context, scene.frame_E
     world = plant.world_frame()
@@ -561,6 +575,8 @@ def _solve(scene: OptimizationScene, guess: BsplineTrajectory, guess_duration_s:
     control = np.hstack(guess.control_points())  # (n, num_control_points)
     trajopt = KinematicTrajectoryOptimization(n, control.shape[1], guess.basis().order(), guess_duration_s)
     trajopt.AddDurationCost(1.0)
+    if energy_weight > 0.0:
+        trajopt.AddPathEnergyCost(energy_weight)
     trajopt.AddDurationConstraint(limits.min_duration_s, limits.max_duration_s)
     lower, upper = plant.GetPositionLowerLimits().copy(), plant.GetPositionUpperLimits().copy()
     for j in (2, 4):  # elbow and wrist: stay on the side of the singularity both ends are on
@@ -591,7 +607,15 @@ def _solve(scene: OptimizationScene, guess: BsplineTrajectory, guess_duration_s:
             _add_pass_speed_bound(trajopt, scene.translational_jacobian(target.q_nominal), target.s,
                                   target.pass_speed_m_s)
     for bound in bounds:
-        if bound.p_W is not None:
+        if bound.p_W is not None and bound.direction_W is not None:
+            # A frame on the line, its z along it: E in a box there.
+            X_WL = RigidTransform(RotationMatrix.MakeFromOneVector(np.asarray(bound.direction_W, dtype=float), 2),
+                                  np.asarray(bound.p_W, dtype=float))
+            half = bound.radius_m / math.sqrt(2.0)
+            trajopt.AddPathPositionConstraint(
+                PositionConstraint(plant, world, X_WL, np.array([-half, -half, -bound.along_m]),
+                                   np.array([half, half, bound.along_m]), frame_E, np.zeros(3), context), bound.s)
+        elif bound.p_W is not None:
             trajopt.AddPathPositionConstraint(
                 PointToPointDistanceConstraint(plant, world, np.asarray(bound.p_W, dtype=float), frame_E,
                                                np.zeros(3), 0.0, bound.radius_m, context), bound.s)
