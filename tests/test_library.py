@@ -14,6 +14,7 @@ from pydrake.math import RigidTransform, RollPitchYaw
 
 import drake_lfd.core.resources as resources
 import drake_lfd.io.library as mut
+import drake_lfd.io.library_store as store
 from drake_lfd.core.demonstrations import Demonstration
 from drake_lfd.robot.kinematics import dual_quaternions_from_demonstration
 from drake_lfd.core.errors import InputError
@@ -345,7 +346,7 @@ def test_bundled_library_by_name_is_read_only(library, tmp_path, monkeypatch):
     bundled.mkdir()
     os.replace(tmp_path / "lib", bundled / "mine")
     folders = lambda: (tmp_path / "nowhere", bundled)  # noqa: E731
-    monkeypatch.setattr(mut, "bundled_library_directories", folders)  # where Library.open looks
+    monkeypatch.setattr(store, "bundled_library_directories", folders)  # where Library.open looks
     monkeypatch.setattr(resources, "bundled_library_directories", folders)  # where the names are listed
     monkeypatch.chdir(tmp_path)
     assert mut.bundled_library_names() == ["mine"]
@@ -424,8 +425,8 @@ def test_open_reads_no_log_whose_stamp_is_its_cache_row(library, tmp_path, monke
     is read and checked again, and one edited by hand is refused as before."""
     root = tmp_path / "lib"
     read = []
-    real = mut.log_sample_summary
-    monkeypatch.setattr(mut, "log_sample_summary", lambda data, path: read.append(str(path)) or real(data, path))
+    real = store.log_sample_summary
+    monkeypatch.setattr(store, "log_sample_summary", lambda data, path: read.append(str(path)) or real(data, path))
     assert mut.Library.open(root).names == ("screw_cw", "pour")
     assert read == []
     log = root / "demos" / "pour.csv"
@@ -461,7 +462,7 @@ def test_a_crash_while_adding_many_adds_none_of_them(library, tmp_path, monkeypa
     def crash(*args):
         raise Crash("power cut")
 
-    monkeypatch.setattr(mut, "write_manifest", crash)
+    monkeypatch.setattr(store, "write_manifest", crash)
     with pytest.raises(Crash):
         library.add_prepared(pending)
     monkeypatch.undo()
