@@ -488,3 +488,48 @@ def test_one_feature_is_read_by_name_from_the_cache(library, tmp_path, monkeypat
     feature = dut.feature("pour")
     assert any("WHERE name IN" in query for query in queries)
     np.testing.assert_array_equal(feature.deltas.ravel(), np.frombuffer(cache_rows(root)["pour"][3]))
+
+
+# ------------------------------------------------------------------- bulk add in Python
+
+
+def test_add_many_returns_a_typed_report(library, tmp_path):
+    """``Library.add_many``: each valid log added, each other one refused with a kind from
+    a closed set and a reason; progress after each log; the library holds exactly the
+    added ones."""
+    from drake_lfd.io.bulk_add import BAD_LOG, NAME_TAKEN, NOT_FOUND, REFUSAL_KINDS, AddManyReport
+    from drake_lfd.io.demonstration_logs import rtde_csv_text
+
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    for index, name in enumerate(["alpha", "beta", "pour"]):
+        (logs / f"{name}.csv").write_text(rtde_csv_text(make_demo(50 + index, name=name)))
+    (logs / "broken.csv").write_text("")
+    calls = []
+    report = library.add_many([logs, tmp_path / "absent.csv"], "bulk",
+                              progress=lambda *counts: calls.append(counts))
+    assert isinstance(report, AddManyReport) and report.library is library and report.logs == 5
+    assert [added.entry.name for added in report.added] == ["alpha", "beta"]
+    assert [(str(r.path), r.kind) for r in report.refused] == [
+        (str(tmp_path / "absent.csv"), NOT_FOUND), (str(logs / "broken.csv"), BAD_LOG), (str(logs / "pour.csv"), NAME_TAKEN)]
+    assert all(r.kind in REFUSAL_KINDS and "\n" not in r.reason for r in report.refused)
+    assert report.refusal_counts() == {NOT_FOUND: 1, BAD_LOG: 1, NAME_TAKEN: 1}
+    assert calls[0] == (0, 4, 0, 1) and calls[-1] == (4, 4, 2, 3)
+    assert mut.Library.open(tmp_path / "lib").names == ("screw_cw", "pour", "alpha", "beta")
+    assert mut.Library.open(tmp_path / "lib").entry("alpha").description == "bulk"
+
+
+def test_create_many_creates_nothing_when_no_log_is_accepted(tmp_path):
+    (tmp_path / "bad name.csv").write_text("x")
+    report = mut.Library.create_many(tmp_path / "new", [tmp_path / "bad name.csv"], X_tool0_E=X_TOOL0_E)
+    assert report.library is None and report.added == () and not (tmp_path / "new").exists()
+
+
+def test_an_error_whose_fix_is_a_command_carries_it_as_a_hint(library, tmp_path):
+    from drake_lfd.core.errors import Hint
+
+    (tmp_path / "lib" / "demos" / "pour.csv").unlink()
+    with pytest.raises(InputError) as info:
+        mut.Library.open(tmp_path / "lib")
+    assert info.value.hints == (Hint("library remove", (str(tmp_path / "lib"), "pour")),)
+    assert f"drop the entry with 'drake-lfd library remove {tmp_path / 'lib'} pour'" in str(info.value)

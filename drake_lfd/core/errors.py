@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import re
 
 __all__ = [
     "EXIT_OK",
@@ -24,6 +23,7 @@ __all__ = [
     "EXIT_BAD_INPUT",
     "EXIT_DEMONSTRATION_REQUESTED",
     "EXIT_NO_EXECUTABLE_PLAN",
+    "HINT",
     "Hint",
     "InputError",
 ]
@@ -65,9 +65,10 @@ class Hint:
         return " ".join((*words, *self.args))
 
 
-# Where a hint goes in a problem's text: ``{0}``, ``{1}``, ... (only digits, so the
-# braces of a pose written as YAML, ``{p: [...]}``, stay text).
-_HINT_MARK = re.compile(r"\{(\d+)\}")
+#: Where a hint goes in a problem's text (``f"... with '{HINT}'"``), the first for the
+#: first hint and so on: a control character no file name or field a user writes holds,
+#: so text quoted from a user's file is never taken for one.
+HINT = "\x1f"
 
 
 class InputError(Exception):
@@ -82,8 +83,8 @@ class InputError(Exception):
     field : str, optional
         The field within it.
     hints : sequence of Hint, optional
-        Commands that fix the problem; ``problem`` says where each goes (``{0}`` for the
-        first, ...), and ``self.problem`` is the text with them written out.
+        Commands that fix the problem; ``problem`` says where each goes (:data:`HINT`,
+        one per hint in order), and ``self.problem`` is the text with them written out.
     """
 
     def __init__(
@@ -94,7 +95,9 @@ class InputError(Exception):
         self.field = field
         self.hints = tuple(hints)
         if self.hints:
-            problem = _HINT_MARK.sub(lambda match: str(self.hints[int(match.group(1))]), problem)
+            parts = problem.split(HINT)
+            if len(parts) == len(self.hints) + 1:  # (a mismatch is a slip of the caller's: text kept)
+                problem = parts[0] + "".join(str(hint) + part for hint, part in zip(self.hints, parts[1:]))
         self.problem = problem
         parts = [p for p in (self.file, field, problem) if p]
         super().__init__(": ".join(parts))

@@ -43,9 +43,10 @@ from pathlib import Path
 import numpy as np
 from pydrake.math import RigidTransform
 
-from drake_lfd.core.errors import Hint, InputError
+from drake_lfd.core.errors import HINT, Hint, InputError
 from drake_lfd.core.features import DEFAULT_NUM_SAMPLES, DEFAULT_ROTATION_LENGTH_M, Feature
-from drake_lfd.core.resources import bundled_library_directories, bundled_library_names, bundled_library_paths  # noqa: F401 (re-exported)
+from drake_lfd.core.resources import bundled_library_directories  # noqa: F401 (re-exported)
+from drake_lfd.core.resources import bundled_library_names, bundled_library_paths
 from drake_lfd.io.demo_preparation import MIN_MOTION_LENGTH, DemonstrationPreparer
 from drake_lfd.io.demonstration_logs import read_rtde_csv
 from drake_lfd.io.feature_cache import CACHE_NAME, CacheRow, delete_rows, log_stamp, read_rows, write_rows
@@ -277,7 +278,7 @@ class Library(LibraryFeatureReads):
             library = cls.open(path, **feature_parameters)
             if not same_frame(library.X_tool0_E, X_tool0_E):
                 raise InputError(
-                    "became a library with another end-effector frame while this add ran ({0})",
+                    f"became a library with another end-effector frame while this add ran ({HINT})",
                     file=library.label,
                     field="X_tool0_E",
                     hints=(Hint("", tool_frame_arguments(library.X_tool0_E)),),
@@ -363,7 +364,7 @@ class Library(LibraryFeatureReads):
         if self.read_only:
             raise InputError(
                 f"is a bundled library and read-only (installed in {self.path}); make an editable copy "
-                "with '{0}' and use DIR, or start your own library with '{1}'",
+                f"with '{HINT}' and use DIR, or start your own library with '{HINT}'",
                 file=self.label,
                 hints=(Hint("library copy", (self.label, "DIR")),
                        Hint("library add", ("DIR", "DEMO.csv", "--name", "NAME", "--tool0-E-p", "X", "Y", "Z",
@@ -587,7 +588,7 @@ def check_end_effector_frame(library, X_tool0_E_task, file=None):
         raise InputError(
             f"the task's end-effector frame {pose_yaml_text(X_tool0_E_task)} differs from the one "
             f"library {library.label} was recorded with, {pose_yaml_text(library.X_tool0_E)}; "
-            "record the demonstrations for the task's frame into a new library with '{0}', "
+            f"record the demonstrations for the task's frame into a new library with '{HINT}', "
             f"or set the task's X_tool0_E to {pose_yaml_text(library.X_tool0_E)}",
             file=file,
             field="X_tool0_E",

@@ -39,7 +39,7 @@ from typing import NamedTuple
 
 from pydrake.math import RigidTransform
 
-from drake_lfd.core.errors import InputError
+from drake_lfd.core.errors import HINT, Hint, InputError
 from drake_lfd.core.resources import MANIFEST_NAME
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform, rigid_transform_from_pose_json
@@ -227,11 +227,11 @@ def _parse_entry(value, index, directory, manifest, check_logs, resolved):
             f"{value['file']!r} is not a path inside the library directory", manifest, f"{field}.file"
         )
     if check_logs and not is_file:
-        raise _manifest_error(
-            f"the joint log {value['file']} is missing; restore it, or drop the entry with "
-            f"'drake-lfd library remove {directory} {name}'",
-            manifest,
-            f"{field}.file",
+        raise InputError(
+            f"the joint log {value['file']} is missing; restore it, or drop the entry with '{HINT}'",
+            file=manifest,
+            field=f"{field}.file",
+            hints=(Hint("library remove", (str(directory), name)),),
         )
     samples = value["samples"]
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 2:

@@ -38,7 +38,7 @@ import shutil
 import uuid
 from pathlib import Path
 
-from drake_lfd.core.errors import Hint, InputError
+from drake_lfd.core.errors import HINT, Hint, InputError
 from drake_lfd.core.resources import bundled_library_directories, bundled_library_names
 from drake_lfd.io.atomic_files import atomic_write_bytes, atomic_write_many, fsync_directory
 from drake_lfd.io.demonstration_logs import log_sample_summary
@@ -228,7 +228,7 @@ def check_entries_against_logs(directory, manifest, rows):
     for index, entry in enumerate(manifest.entries):
         log = os.path.join(directory, entry.file)  # a string: thousands of Path joins cost more than the stats
         field = f"demos[{index}]"
-        remedy = "restore the log, or drop the entry with '{0}' and add the demonstration again"
+        remedy = f"restore the log, or drop the entry with '{HINT}' and add the demonstration again"
         hints = (Hint("library remove", (str(directory), entry.name)),)
         row = rows.get(entry.name)
         try:
