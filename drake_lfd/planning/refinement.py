@@ -24,9 +24,9 @@ SNOPT's iteration counts (:class:`SolverBudget`), never by time, and the bounds 
 the task's ``timing:`` limits at its ``limit_fraction``: the same inputs give the same
 plan on any machine under any load.
 
-:func:`plain_plan` is the peer without demonstrations: the same program and checks, from
+The plain optimizer, the peer without demonstrations (the same program and checks, from
 a straight joint-space line between the composed plan's start and goal configurations,
-with no tube.
+with no tube), is :func:`~drake_lfd.planning.plain_optimizer.plain_plan`.
 
 Not for: composing demonstrations (``planner.py``) or the Drake program itself
 (``robot/trajectory_optimization.py``).
@@ -66,7 +66,6 @@ __all__ = [
     "TrajectoryLimits",
     "OptimizationScene",
     "refine_plan",
-    "plain_plan",
     "tube_deviation",
     "path_fractions_of",
     "shape_deviation",
@@ -643,11 +642,3 @@ def refine_plan(result: PlanResult, checker: JointPathChecker, *, scene: Optimiz
     options : RefinementOptions
     """
     return _optimize(result, checker, scene, options, "refine")
-
-
-def plain_plan(result: PlanResult, checker: JointPathChecker, *, scene: OptimizationScene | None = None,
-               options: RefinementOptions = RefinementOptions()) -> PlanResult:
-    """The plain optimizer's plan, like :func:`refine_plan` but without the tube, from
-    straight joint-space lines between ``result``'s configurations at its critical
-    configurations (pinned at the same path fractions)."""
-    return _optimize(result, checker, scene, options, "plain")
