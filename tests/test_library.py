@@ -533,3 +533,27 @@ def test_an_error_whose_fix_is_a_command_carries_it_as_a_hint(library, tmp_path)
         mut.Library.open(tmp_path / "lib")
     assert info.value.hints == (Hint("library remove", (str(tmp_path / "lib"), "pour")),)
     assert f"drop the entry with 'drake-lfd library remove {tmp_path / 'lib'} pour'" in str(info.value)
+
+
+def test_each_bundled_joint_log_is_stored_once():
+    """In a checkout a bundled library's logs are links to ``sims/demos/<name>.csv`` (an
+    installed wheel holds copies); the library opens by name and by path, and a link
+    out of a user's library is still refused."""
+    sims = resources.package_directory().parent / "sims"
+    if not (sims / "libraries" / "paper6").is_dir():
+        pytest.skip("not a source checkout")
+    for name in ("paper5", "paper6"):
+        for library in (mut.Library.open(name), mut.Library.open(sims / "libraries" / name)):
+            for entry in library.entries:
+                log = library.path / entry.file
+                assert log.is_symlink() and log.resolve() == (sims / "demos" / f"{entry.name}.csv").resolve()
+                library.demonstration(entry.name)
+
+
+def test_a_log_linked_out_of_a_users_library_is_refused(library, tmp_path):
+    root = tmp_path / "lib"
+    outside = tmp_path / "outside.csv"
+    os.replace(root / "demos" / "pour.csv", outside)
+    (root / "demos" / "pour.csv").symlink_to(outside)
+    with pytest.raises(InputError, match="not a path inside the library directory"):
+        mut.Library.open(root)

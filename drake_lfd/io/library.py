@@ -63,6 +63,7 @@ from drake_lfd.io.library_manifest import (
 )
 from drake_lfd.io.library_store import (
     DURATION_TOLERANCE_S,
+    bundled_logs_root,
     check_entries_against_logs,
     create_directory,
     delete_entry_files,
@@ -178,7 +179,8 @@ class Library(LibraryFeatureReads):
         # The shared lock keeps writers out while the manifest and the logs are compared.
         with shared_lock(Path(directory) / LOCK_NAME), collection_paused():
             manifest_bytes = read_manifest_bytes(directory)
-            manifest = read_manifest(directory, check_logs=check_logs, data=manifest_bytes)
+            manifest = read_manifest(directory, check_logs=check_logs, data=manifest_bytes,
+                                     links_within=bundled_logs_root(directory))
             rows = read_rows(Path(directory) / CACHE_DIRECTORY / CACHE_NAME)
             if check_logs:
                 check_entries_against_logs(directory, manifest, rows)

@@ -59,6 +59,7 @@ __all__ = [
     "library_temporaries",
     "remove_stale_temporaries",
     "library_location",
+    "bundled_logs_root",
     "is_unused_library_directory",
     "remove_unused_directory",
     "collection_paused",
@@ -104,6 +105,17 @@ def library_location(path_or_name):
     if looked_in:
         tried += f", and no bundled library of that name in {' or '.join(looked_in)}"
     raise InputError(f"no such library: {tried} (bundled libraries: {bundled})", file=name)
+
+
+def bundled_logs_root(directory):
+    """Where a bundled library's logs may link to, or None for any other library: a
+    bundled library's ``demos/<name>.csv`` are links to the one stored copy in the
+    scenarios' ``demos/`` beside ``libraries/`` (``sims/make_paper_libraries.py``; an
+    installed wheel holds copies), whether it is opened by name or by path."""
+    parent = Path(directory).resolve().parent
+    if any(parent == Path(folder).resolve() for folder in bundled_library_directories()):
+        return parent.parent
+    return None
 
 
 def make_directory(path):
