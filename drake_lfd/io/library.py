@@ -14,14 +14,12 @@ before anything is written (:mod:`~drake_lfd.io.demo_preparation`), so a refused
 ``add`` or :meth:`Library.create_with` changes and creates nothing; many logs at once:
 :meth:`Library.add_many` (:mod:`~drake_lfd.io.bulk_add`).
 
-Edits: ``add`` writes the logs before the manifest that references them (many at once:
-:meth:`Library.add_prepared`, one turn of the lock), ``remove`` rewrites the manifest
-before deleting the log. Every write holds the library's exclusive lock across its
-read-modify-write and re-reads the manifest under it, so two ``add`` of different
-demonstrations both land and a name taken meanwhile is refused. Opening holds the
-shared lock while it checks each entry against its log
-(:func:`~drake_lfd.io.library_store.check_entries_against_logs`);
-``open(..., check_logs=False)`` skips that so ``remove`` can repair a library.
+Edits (``add``, many at once with :meth:`Library.add_prepared`; ``remove``) hold the
+library's exclusive lock across their read-modify-write and re-read the manifest under
+it, so two adds of different names both land and a name taken meanwhile is refused;
+opening checks each entry against its log (``open(..., check_logs=False)`` skips that
+so ``remove`` can repair a library). The order of the writes that makes a crash
+harmless is the store's.
 
 Bundled libraries (``Library.open("paper5")``) are read-only; :func:`copy_library`
 makes an editable copy of one (or of any library), atomically. Demonstration names
@@ -52,29 +50,12 @@ from drake_lfd.io.demonstration_logs import read_rtde_csv
 from drake_lfd.io.feature_cache import CACHE_NAME, CacheRow, delete_rows, log_stamp, read_rows, write_rows
 from drake_lfd.io.file_lock import shared_lock
 from drake_lfd.io.library_feature_reads import FeatureRecord, LibraryFeatureReads
-from drake_lfd.io.library_manifest import (
-    CACHE_DIRECTORY,
-    LOCK_NAME,
-    MANIFEST_NAME,
-    Manifest,
-    read_manifest,
-    read_manifest_bytes,
-    write_manifest,
-)
-from drake_lfd.io.library_store import (
-    DURATION_TOLERANCE_S,
-    bundled_logs_root,
-    check_entries_against_logs,
-    create_directory,
-    delete_entry_files,
-    collection_paused,
-    copy_files,
-    is_unused_library_directory,
-    library_location,
-    locked_for_writing,
-    remove_stale_temporaries,
-    write_new_entries,
-)
+from drake_lfd.io.library_manifest import (CACHE_DIRECTORY, LOCK_NAME, MANIFEST_NAME, Manifest, read_manifest,
+                                           read_manifest_bytes, write_manifest)
+from drake_lfd.io.library_store import (DURATION_TOLERANCE_S, bundled_logs_root, check_entries_against_logs,
+                                        collection_paused, copy_files, create_directory, delete_entry_files,
+                                        is_unused_library_directory, library_location, locked_for_writing,
+                                        remove_stale_temporaries, write_new_entries)
 from drake_lfd.io.pose_records import pose_yaml_text, tool_frame_arguments, tool_frame_options
 
 # The names other modules import from here, whichever module defines them.
