@@ -68,11 +68,11 @@ from drake_lfd.planning.refinement import (
     RefinementOptions,
     TrajectoryLimits,
     path_fractions_of,
-    plain_plan,
     refine_plan,
     shape_deviation,
     tube_deviation,
 )
+from drake_lfd.planning.plain_optimizer import plain_plan
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.robot.workcell import Workcell
 

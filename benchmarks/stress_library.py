@@ -57,13 +57,15 @@ IDENTITY = ["--tool0-E-p", "0", "0", "0", "--tool0-E-euler-zyx", "0", "0", "0"]
 # for), answering with a JSON line of exit code, stdout and stderr.
 WRITER = r"""
 import contextlib, io, json, os, sys, time
-import drake_lfd.cli.library_actions, drake_lfd.io.library
+import drake_lfd.cli.library_actions, drake_lfd.io.library, drake_lfd.io.library_feature_reads
+import drake_lfd.io.library_store
 from drake_lfd.cli import main
 from drake_lfd.cli.app import build_parser
 build_parser()
 if os.environ.get("STRESS_LIBRARY_NO_LOCK"):  # the control: writers do not take turns
-    drake_lfd.io.library.exclusive_lock = lambda path: contextlib.nullcontext()
-    drake_lfd.io.library.shared_lock = lambda path: contextlib.nullcontext()
+    drake_lfd.io.library_store.exclusive_lock = lambda path: contextlib.nullcontext()
+    for module in (drake_lfd.io.library, drake_lfd.io.library_feature_reads):
+        module.shared_lock = lambda path: contextlib.nullcontext()
 
 def wait(start):
     while start != "-" and not os.path.exists(start):
@@ -85,14 +87,15 @@ if sys.argv[1] == "--serve":
 else:
     ready, start, argv = sys.argv[1], sys.argv[2], sys.argv[3:]
     if os.environ.get("STRESS_LIBRARY_TIMING"):  # calibration: when the writing starts
-        writing = drake_lfd.io.library._writing
+        writing = drake_lfd.io.library_store.locked_for_writing
         @contextlib.contextmanager
         def timed(*args, **kwargs):
             print(f"writing-starts {time.perf_counter() - began}", file=sys.stderr, flush=True)
             with writing(*args, **kwargs):
                 yield
             print(f"writing-ends {time.perf_counter() - began}", file=sys.stderr, flush=True)
-        drake_lfd.io.library._writing = timed
+        for module in (drake_lfd.io.library, drake_lfd.io.library_store, drake_lfd.io.library_feature_reads):
+            module.locked_for_writing = timed  # (every module that takes the lock to write)
     open(ready, "w").close()
     began = time.perf_counter()
     wait(start)
@@ -147,13 +150,14 @@ def inspect_library(root, sources):
     ``corrupt`` (a message, or None).
     """
     from drake_lfd.io.demonstration_logs import read_rtde_csv
-    from drake_lfd.io.library import Library, _temporaries
+    from drake_lfd.io.library import Library
+    from drake_lfd.io.library_store import library_temporaries
 
     root = Path(root)
     result = {"names": None, "orphans": [], "temporaries": [], "corrupt": None}
     if not root.exists():
         return result
-    result["temporaries"] = sorted(str(p.relative_to(root)) for p in _temporaries(root))
+    result["temporaries"] = sorted(str(p.relative_to(root)) for p in library_temporaries(root))
     try:
         library = Library.open(root)
         for name in library.names:
@@ -169,7 +173,7 @@ def inspect_library(root, sources):
     result["names"] = list(library.names)
     listed = {entry.file for entry in library.entries}
     listed.add("cache/features.sqlite")  # the feature cache, one database for the library
-    listed |= {str(p.relative_to(root)) for p in _temporaries(root)}  # counted as temporaries
+    listed |= {str(p.relative_to(root)) for p in library_temporaries(root)}  # counted as temporaries
     for sub in ("demos", "cache"):
         if (root / sub).is_dir():
             for path in (root / sub).iterdir():

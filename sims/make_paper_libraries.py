@@ -11,6 +11,10 @@ and writes ``sims/demos/<name>.csv``; then it builds
 - ``sims/libraries/paper6/``: the same plus span,
 
 with the ``X_tool0_E`` the scripts share (the paper scenarios' end-effector frame).
+Each joint log is stored once: a library's ``demos/<name>.csv`` is a symbolic link to
+``sims/demos/<name>.csv`` (checked byte for byte against what the library would have
+written). An installed wheel holds copies (setuptools follows the links), so
+``Library.open("paper5")`` works offline there too.
 Everything is seeded (each script carries its seed) and the simulation is
 deterministic, so re-running reproduces the joint logs byte for byte; only the
 manifests' ``added`` times change. Each library is built in a temporary directory beside
@@ -21,6 +25,7 @@ The feature caches (derived data) are not kept in the bundled libraries.
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import sys
 import time
@@ -30,7 +35,7 @@ from drake_lfd.io.demonstration_logs import read_rtde_csv, write_rtde_csv
 from drake_lfd.io.guidance_scripts import load_guidance_script
 from drake_lfd.diagrams.kinesthetic import record_demonstration
 from drake_lfd.io.library import Library
-from drake_lfd.io.library_manifest import CACHE_DIRECTORY
+from drake_lfd.io.library_manifest import CACHE_DIRECTORY, LOCK_NAME
 
 HERE = Path(__file__).resolve().parent
 DEMOS_DIRECTORY = HERE / "demos"
@@ -75,6 +80,13 @@ def build_library(library_name, names, *, out=print):
             raise RuntimeError(f"{name}.csv: {warnings[0]}")
         library.add(demonstration, name, script.description)
     shutil.rmtree(staging / CACHE_DIRECTORY, ignore_errors=True)
+    (staging / LOCK_NAME).unlink(missing_ok=True)  # (no writer: a bundled library is read-only)
+    for entry in library.entries:  # each log stored once: a link to sims/demos/<name>.csv
+        log, stored = staging / entry.file, DEMOS_DIRECTORY / f"{entry.name}.csv"
+        if log.read_bytes() != stored.read_bytes():
+            raise RuntimeError(f"{log}: differs from {stored}, which it would link to")
+        log.unlink()
+        log.symlink_to(os.path.relpath(stored, log.parent))
     retired = LIBRARIES_DIRECTORY / f".{library_name}.old"
     if retired.exists():
         shutil.rmtree(retired)

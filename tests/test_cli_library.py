@@ -330,8 +330,8 @@ def test_a_bulk_add_killed_while_creating_its_library_leaves_no_library(tmp_path
     killed = subprocess.run(
         [sys.executable, "-c",
          "import os, sys\n"
-         "import drake_lfd.io.library as library\n"
-         "library.write_manifest = lambda *args, **kwargs: os._exit(9)\n"
+         "import drake_lfd.io.library_store as store\n"
+         "store.write_manifest = lambda *args, **kwargs: os._exit(9)\n"
          "from drake_lfd.cli import main\n"
          "sys.exit(main(sys.argv[1:]))\n",
          "library", "add", str(root), str(logs), *IDENTITY],

@@ -14,6 +14,7 @@ from pydrake.math import RigidTransform, RollPitchYaw
 
 import drake_lfd.core.resources as resources
 import drake_lfd.io.library as mut
+import drake_lfd.io.library_store as store
 from drake_lfd.core.demonstrations import Demonstration
 from drake_lfd.robot.kinematics import dual_quaternions_from_demonstration
 from drake_lfd.core.errors import InputError
@@ -345,7 +346,7 @@ def test_bundled_library_by_name_is_read_only(library, tmp_path, monkeypatch):
     bundled.mkdir()
     os.replace(tmp_path / "lib", bundled / "mine")
     folders = lambda: (tmp_path / "nowhere", bundled)  # noqa: E731
-    monkeypatch.setattr(mut, "bundled_library_directories", folders)  # where Library.open looks
+    monkeypatch.setattr(store, "bundled_library_directories", folders)  # where Library.open looks
     monkeypatch.setattr(resources, "bundled_library_directories", folders)  # where the names are listed
     monkeypatch.chdir(tmp_path)
     assert mut.bundled_library_names() == ["mine"]
@@ -424,8 +425,8 @@ def test_open_reads_no_log_whose_stamp_is_its_cache_row(library, tmp_path, monke
     is read and checked again, and one edited by hand is refused as before."""
     root = tmp_path / "lib"
     read = []
-    real = mut.log_sample_summary
-    monkeypatch.setattr(mut, "log_sample_summary", lambda data, path: read.append(str(path)) or real(data, path))
+    real = store.log_sample_summary
+    monkeypatch.setattr(store, "log_sample_summary", lambda data, path: read.append(str(path)) or real(data, path))
     assert mut.Library.open(root).names == ("screw_cw", "pour")
     assert read == []
     log = root / "demos" / "pour.csv"
@@ -461,7 +462,7 @@ def test_a_crash_while_adding_many_adds_none_of_them(library, tmp_path, monkeypa
     def crash(*args):
         raise Crash("power cut")
 
-    monkeypatch.setattr(mut, "write_manifest", crash)
+    monkeypatch.setattr(store, "write_manifest", crash)
     with pytest.raises(Crash):
         library.add_prepared(pending)
     monkeypatch.undo()
@@ -487,3 +488,72 @@ def test_one_feature_is_read_by_name_from_the_cache(library, tmp_path, monkeypat
     feature = dut.feature("pour")
     assert any("WHERE name IN" in query for query in queries)
     np.testing.assert_array_equal(feature.deltas.ravel(), np.frombuffer(cache_rows(root)["pour"][3]))
+
+
+# ------------------------------------------------------------------- bulk add in Python
+
+
+def test_add_many_returns_a_typed_report(library, tmp_path):
+    """``Library.add_many``: each valid log added, each other one refused with a kind from
+    a closed set and a reason; progress after each log; the library holds exactly the
+    added ones."""
+    from drake_lfd.io.bulk_add import BAD_LOG, NAME_TAKEN, NOT_FOUND, REFUSAL_KINDS, AddManyReport
+    from drake_lfd.io.demonstration_logs import rtde_csv_text
+
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    for index, name in enumerate(["alpha", "beta", "pour"]):
+        (logs / f"{name}.csv").write_text(rtde_csv_text(make_demo(50 + index, name=name)))
+    (logs / "broken.csv").write_text("")
+    calls = []
+    report = library.add_many([logs, tmp_path / "absent.csv"], "bulk",
+                              progress=lambda *counts: calls.append(counts))
+    assert isinstance(report, AddManyReport) and report.library is library and report.logs == 5
+    assert [added.entry.name for added in report.added] == ["alpha", "beta"]
+    assert [(str(r.path), r.kind) for r in report.refused] == [
+        (str(tmp_path / "absent.csv"), NOT_FOUND), (str(logs / "broken.csv"), BAD_LOG), (str(logs / "pour.csv"), NAME_TAKEN)]
+    assert all(r.kind in REFUSAL_KINDS and "\n" not in r.reason for r in report.refused)
+    assert report.refusal_counts() == {NOT_FOUND: 1, BAD_LOG: 1, NAME_TAKEN: 1}
+    assert calls[0] == (0, 4, 0, 1) and calls[-1] == (4, 4, 2, 3)
+    assert mut.Library.open(tmp_path / "lib").names == ("screw_cw", "pour", "alpha", "beta")
+    assert mut.Library.open(tmp_path / "lib").entry("alpha").description == "bulk"
+
+
+def test_create_many_creates_nothing_when_no_log_is_accepted(tmp_path):
+    (tmp_path / "bad name.csv").write_text("x")
+    report = mut.Library.create_many(tmp_path / "new", [tmp_path / "bad name.csv"], X_tool0_E=X_TOOL0_E)
+    assert report.library is None and report.added == () and not (tmp_path / "new").exists()
+
+
+def test_an_error_whose_fix_is_a_command_carries_it_as_a_hint(library, tmp_path):
+    from drake_lfd.core.errors import Hint
+
+    (tmp_path / "lib" / "demos" / "pour.csv").unlink()
+    with pytest.raises(InputError) as info:
+        mut.Library.open(tmp_path / "lib")
+    assert info.value.hints == (Hint("library remove", (str(tmp_path / "lib"), "pour")),)
+    assert f"drop the entry with 'drake-lfd library remove {tmp_path / 'lib'} pour'" in str(info.value)
+
+
+def test_each_bundled_joint_log_is_stored_once():
+    """In a checkout a bundled library's logs are links to ``sims/demos/<name>.csv`` (an
+    installed wheel holds copies); the library opens by name and by path, and a link
+    out of a user's library is still refused."""
+    sims = resources.package_directory().parent / "sims"
+    if not (sims / "libraries" / "paper6").is_dir():
+        pytest.skip("not a source checkout")
+    for name in ("paper5", "paper6"):
+        for library in (mut.Library.open(name), mut.Library.open(sims / "libraries" / name)):
+            for entry in library.entries:
+                log = library.path / entry.file
+                assert log.is_symlink() and log.resolve() == (sims / "demos" / f"{entry.name}.csv").resolve()
+                library.demonstration(entry.name)
+
+
+def test_a_log_linked_out_of_a_users_library_is_refused(library, tmp_path):
+    root = tmp_path / "lib"
+    outside = tmp_path / "outside.csv"
+    os.replace(root / "demos" / "pour.csv", outside)
+    (root / "demos" / "pour.csv").symlink_to(outside)
+    with pytest.raises(InputError, match="not a path inside the library directory"):
+        mut.Library.open(root)

@@ -17,7 +17,7 @@ import pytest
 from drake_lfd.cli import main
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
-from drake_lfd.io import library as library_module
+from drake_lfd.io import library_store
 from drake_lfd.io.library import (
     Library,
     bundled_library_paths,
@@ -224,7 +224,7 @@ def test_copy_is_atomic(tmp_path, monkeypatch):
     def fail(*args, **kwargs):
         raise OSError("disk full")
 
-    monkeypatch.setattr(library_module, "write_manifest", fail)
+    monkeypatch.setattr(library_store, "write_manifest", fail)
     with pytest.raises(OSError):
         copy_library("paper5", tmp_path / "copy")
     assert list(tmp_path.iterdir()) == []  # neither the copy nor its staging directory

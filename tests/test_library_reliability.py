@@ -116,15 +116,15 @@ def test_a_writer_waits_for_the_lock(library, tmp_path):
 # debris just before the first writer's manifest temporary appeared.
 RACING_WRITER = """
 import os, pathlib, sys
-import drake_lfd.io.library as library
-real, calls = library._temporaries, []
+import drake_lfd.io.library_store as store
+real, calls = store.library_temporaries, []
 def listed_too_early(directory):
     calls.append(directory)
     if len(calls) != 2:
         return real(directory)
     pathlib.Path(os.environ["LISTED"]).touch()  # create's check is done: the lock is next
     return []
-library._temporaries = listed_too_early
+store.library_temporaries = listed_too_early
 from drake_lfd.cli import main
 sys.exit(main(sys.argv[1:]))
 """

@@ -27,10 +27,10 @@ from drake_lfd.planning.refinement import (
     RefinementOptions,
     SolverBudget,
     TrajectoryLimits,
-    plain_plan,
     refine_plan,
     shape_deviation,
 )
+from drake_lfd.planning.plain_optimizer import plain_plan
 from drake_lfd.robot.workcell import Workcell
 import drake_lfd.planning.refinement as refinement_module
 

@@ -18,7 +18,7 @@ from drake_lfd.experiments.simulation import TrialRunner
 from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task, task_from_spec, task_spec_from_text
 from drake_lfd.core.errors import InputError
-from drake_lfd.planning.planner import box_signed_distance
+from drake_lfd.robot.clearance import box_signed_distance
 from drake_lfd.robot.initial_ik import solve_initial_configuration
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene

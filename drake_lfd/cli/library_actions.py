@@ -18,11 +18,12 @@ A thin front end over :mod:`drake_lfd.io.library` (documented in docs/cli.rst):
   nothing). Concurrent ``add`` and ``remove`` on one library take turns (the library's
   lock, :mod:`drake_lfd.io.library`).
 - ``library add LIB DEMO_OR_DIR_OR_GLOB...`` without ``--name`` adds every log the
-  arguments name (files, folders, glob patterns: :func:`find_logs`), each named after
-  its file's stem, the other options applying to all; a progress bar on a terminal;
-  every valid log added (in batches, each one turn of the library's lock), each other
-  one refused with one line naming it and why, then one summary line; exit 0 when all
-  were added, 2 when any was refused.
+  arguments name (files, folders, glob patterns: :func:`~drake_lfd.io.bulk_add.find_logs`),
+  each named after its file's stem, the other options applying to all; a progress bar on
+  a terminal; every valid log added (in batches, each one turn of the library's lock:
+  :func:`~drake_lfd.io.bulk_add.add_logs`, which ``Library.add_many`` runs too), each
+  other one refused with one line naming it and why, then one summary line; exit 0 when
+  all were added, 2 when any was refused.
 - ``library show LIB [--json OUT]`` prints a table: per demonstration its samples,
   duration and the rotation of its feature at the start, middle and three quarters of
   the way (``delta`` at 0, 50 and 75 % of the resampled motion, like the paper's Table
@@ -45,7 +46,6 @@ other commands (one module each in ``drake_lfd/cli``).
 
 from __future__ import annotations
 
-import glob
 import math
 import os
 import sys
@@ -62,11 +62,10 @@ from drake_lfd.cli.progress import ProgressBar
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.io.feature_cache import SUMMARY_FRACTIONS as CACHED_SUMMARY_FRACTIONS
 from drake_lfd.io.feature_cache import feature_summary_rows, summary_indices
-from drake_lfd.io.log_import import check_time_window, read_demonstration_log
-from drake_lfd.io.rosbag_logs import bag_location, is_bag
+from drake_lfd.io.bulk_add import LogReadOptions, add_logs, find_logs
+from drake_lfd.io.log_import import read_demonstration_log
 from drake_lfd.io.library import (
     END_EFFECTOR_FRAME_TOLERANCE,
-    DemonstrationPreparer,
     Library,
     bundled_library_names,
     bundled_library_paths,
@@ -75,7 +74,7 @@ from drake_lfd.io.library import (
     is_unused_library_directory,
     tool_frame_options,
 )
-from drake_lfd.io.library_manifest import MANIFEST_NAME, check_demo_name
+from drake_lfd.io.library_manifest import check_demo_name
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
 from drake_lfd.io.strict_json import strict_json_text
 from drake_lfd.io.yaml_checks import angle_from_text
@@ -205,216 +204,44 @@ def run_add(args):
 
 # --------------------------------------------------------------------------- bulk add
 
-# Prepared demonstrations per turn of the library's lock (each turn one manifest write):
-# other writers wait at most one batch, and a killed bulk add keeps the batches before.
-BULK_BATCH = 500
-# Suffixes of the log files a folder is searched for (ROS 2 bags are directories).
-LOG_SUFFIXES = (".csv", ".bag")
-
-# Why a log of a bulk add was refused, as the summary line counts them.
-_NOT_FOUND = "not found"
-_BAD_NAME = "file name not a demonstration name"
-_REPEATED_NAME = "name repeated in this add"
-_NAME_TAKEN = "name already in the library"
-_BAD_LOG = "log refused"
-
-
-def _logs_in_folder(folder):
-    """The logs directly in ``folder``, sorted: its ``*.csv`` and ``*.bag`` files and ROS 2
-    bag directories."""
-    found = []
-    for child in sorted(folder.iterdir()):
-        if child.is_dir() and is_bag(child):
-            found.append(child)
-        elif child.is_file() and child.suffix.lower() in LOG_SUFFIXES and not child.name.startswith("."):
-            found.append(child)
-    return found
-
-
-def find_logs(arguments):
-    """The logs the DEMO arguments of a bulk add name, in order, each once.
-
-    Parameters
-    ----------
-    arguments : sequence of str
-        Log files (a ROS 2 bag directory counts as one), folders (their ``*.csv`` and
-        ``*.bag`` files and ROS 2 bag directories, not their subfolders) and glob patterns (``*``,
-        ``?``, ``[``; ``**`` reaches into subfolders), whose matches are taken the same way.
-
-    Returns
-    -------
-    logs : list of Path
-    missing : list of str
-        Arguments that name nothing.
-    """
-    logs, missing, seen = [], [], set()
-
-    def take(path):
-        if path.is_dir() and not is_bag(path):
-            for log in _logs_in_folder(path):
-                take(log)
-            return
-        key = os.path.realpath(path)
-        if key not in seen:
-            seen.add(key)
-            logs.append(path)
-
-    for argument in arguments:
-        path = Path(argument)
-        if path.exists():
-            take(path)
-        elif glob.has_magic(argument):
-            matches = sorted(glob.glob(argument, recursive=True))
-            for match in matches:
-                take(Path(match))
-            if not matches:
-                missing.append(argument)
-        else:
-            missing.append(argument)
-    return logs, missing
-
-
-def _log_name(path):
-    """A bulk-added log's demonstration name: its file's stem (a ROS 2 bag: its directory's
-    name)."""
-    location = bag_location(path)
-    if location is not None and location.is_dir():
-        return location.name
-    return path.stem
-
-
-def _reason(error, path):
-    """An error's text without the log's own name in front (the refusal line names it),
-    on one line (a parser's message may span several, as the single add flattens too)."""
-    text = str(error)
-    prefix = f"{path}: "
-    text = text[len(prefix):] if text.startswith(prefix) else text
-    return " ".join(text.splitlines())
-
-
-class _BulkAdd:
-    """The state of one bulk add: the library (None until the first log is accepted, when
-    a new one is created), what was added and refused, and the logs' messages."""
-
-    def __init__(self, args, X_tool0_E_new):
-        self.args = args
-        self.library = None if X_tool0_E_new is not None else Library.open(args.library)
-        self.X_tool0_E_new = X_tool0_E_new
-        X_tool0_E = X_tool0_E_new if self.library is None else self.library.X_tool0_E
-        label = Path(args.library).absolute() if self.library is None else self.library.label
-        self.preparer = DemonstrationPreparer(X_tool0_E, label)
-        self.added = 0
-        self.refused = []  # (path, kind, reason)
-        self.messages = []  # (stream, text): warnings and reports of the logs added
-        self.pending = []  # (path, prepared, warnings, reports)
-
-    def refuse(self, path, kind, reason):
-        self.refused.append((path, kind, reason))
-
-    def commit(self):
-        """Adds the pending demonstrations in one turn of the library's lock."""
-        if not self.pending:
-            return
-        added = refused = None
-        pending = [item for _, item, _, _ in self.pending]
-        if self.library is None and len({item.entry.name.lower() for item in pending}) == len(pending):
-            try:  # the library and its first batch in one step: killed, it leaves no library
-                self.library = Library.create(self.args.library, self.X_tool0_E_new, first=pending)
-                added, refused = pending, []
-            except InputError:
-                if not (Path(self.args.library) / MANIFEST_NAME).is_file():
-                    raise  # (made a library meanwhile by another process: added to below)
-        if self.library is None:
-            self.library = Library.open_or_create(self.args.library, self.X_tool0_E_new)
-        if added is None:
-            added, refused = self.library.add_prepared(pending)
-        taken = {position for position, _ in refused}
-        for position, error in refused:
-            self.refuse(self.pending[position][0], _NAME_TAKEN, _reason(error, self.library.label))
-        for position, (_, _, warnings, reports) in enumerate(self.pending):
-            if position not in taken:
-                self.messages += [(sys.stderr, f"drake-lfd library: warning: {warning}") for warning in warnings]
-                self.messages += [(sys.stdout, report) for report in reports]
-        self.added += len(added)
-        self.pending = []
-
 
 def run_bulk_add(args):
-    """``library add LIB DIR_OR_GLOB...`` without ``--name`` (docs/cli.rst)."""
+    """``library add LIB DIR_OR_GLOB...`` without ``--name`` (docs/cli.rst): the options
+    checked, :func:`~drake_lfd.io.bulk_add.add_logs` run with a progress bar, its report
+    printed (the logs' warnings and reports, one line per refusal, a summary line)."""
     p, euler = _requested_tool_frame(args)
     new = _is_new_library(args.library)
     X_tool0_E = _new_library_frame(args, p, euler) if new else None
-    check_time_window(args.start, args.end)
-    logs, missing = find_logs(args.log)
-    if not logs:
-        raise InputError(
-            f"found no logs in {', '.join(args.log)} (a folder's *.csv and *.bag files and ROS 2 bag directories "
-            "are added; give files, folders or glob patterns)",
-            field="DEMO",
-        )
-    bulk = _BulkAdd(args, X_tool0_E)
-    existing = set()
-    if bulk.library is not None:
-        if bulk.library.read_only:
-            bulk.library.check_writable()  # a bundled library: refused, with the hint to copy it
-        _check_same_frame(bulk.library, p, euler)
-        existing = {name.lower() for name in bulk.library.names}
-    for argument in missing:
-        bulk.refuse(argument, _NOT_FOUND, "no such file or directory, and no file matches it")
-    names = {}
-    bar = ProgressBar("adding", len(logs), quiet_unless_terminal=True)
-    for done, path in enumerate(logs, start=1):
-        _bulk_add_one(bulk, path, names, existing)
-        if len(bulk.pending) >= BULK_BATCH:
-            bulk.commit()
-        bar.update(done, f"{bulk.added + len(bulk.pending)} accepted, {len(bulk.refused)} refused")
-    bulk.commit()
-    bar.close()
-    for stream, text in bulk.messages:
-        print(text, file=stream)
-    for path, _, reason in bulk.refused:
-        print(f"drake-lfd library: refused {path}: {reason}", file=sys.stderr)
-    label = bulk.library.label if bulk.library is not None else args.library
-    summary = f"added {bulk.added} of {len(logs) + len(missing)} logs to {label}"
-    if bulk.refused:
-        counts = {}
-        for _, kind, _ in bulk.refused:
-            counts[kind] = counts.get(kind, 0) + 1
-        summary += f"; refused {len(bulk.refused)}: " + ", ".join(f"{n} {kind}" for kind, n in counts.items())
-        if bulk.library is None:
+    options = LogReadOptions(keep_all_rows=args.keep_all_rows, rate_hz=args.rate, topic=args.topic,
+                             start_s=args.start, end_s=args.end, tcp_offset=args.tcp_offset)
+    bars = []
+
+    def progress(done, total, accepted, refused):
+        if not bars:
+            bars.append(ProgressBar("adding", total, quiet_unless_terminal=True))
+        if done:
+            bars[0].update(done, f"{accepted} accepted, {refused} refused")
+
+    report = add_logs(args.library, args.log, args.description, X_tool0_E=X_tool0_E, options=options,
+                      progress=progress, before_adding=lambda library: _check_same_frame(library, p, euler))
+    for bar in bars:
+        bar.close()
+    for added in report.added:
+        for warning in added.warnings:
+            print(f"drake-lfd library: warning: {warning}", file=sys.stderr)
+        for text in added.reports:
+            print(text)
+    for refusal in report.refused:
+        print(f"drake-lfd library: refused {refusal.path}: {refusal.reason}", file=sys.stderr)
+    label = report.library.label if report.library is not None else args.library
+    summary = f"added {len(report.added)} of {report.logs} logs to {label}"
+    if report.refused:
+        counts = report.refusal_counts()
+        summary += f"; refused {len(report.refused)}: " + ", ".join(f"{n} {kind}" for kind, n in counts.items())
+        if report.library is None:
             summary += " (no library was created)"
     print(summary)
-    return EXIT_OK if not bulk.refused else EXIT_BAD_INPUT
-
-
-def _bulk_add_one(bulk, path, names, existing):
-    """Reads and checks one log of a bulk add; a valid one joins ``bulk.pending``."""
-    args = bulk.args
-    name = _log_name(path)
-    try:
-        check_demo_name(name)
-    except InputError as error:
-        bulk.refuse(path, _BAD_NAME, f"{error.problem}; rename the file, or add it alone with --name NAME")
-        return
-    if name.lower() in names:
-        bulk.refuse(path, _REPEATED_NAME, f"its name {name!r} is also the name of {names[name.lower()]}; "
-                                          "rename one of the files, or add it alone with --name NAME")
-        return
-    if name.lower() in existing:
-        bulk.refuse(path, _NAME_TAKEN, f"the library has a demonstration named {name!r} already; remove it "
-                                       "first, or rename the file")
-        return
-    try:
-        demonstration, warnings, reports = read_demonstration_log(
-            path, name=name, description=args.description, filter_runtime_state=not args.keep_all_rows,
-            rate_hz=args.rate, topic=args.topic, start_s=args.start, end_s=args.end, tcp_offset=args.tcp_offset,
-        )
-        prepared = bulk.preparer.prepare(demonstration, name, args.description, source=path)
-    except InputError as error:
-        bulk.refuse(path, _BAD_LOG, _reason(error, path))
-        return
-    names[name.lower()] = path
-    bulk.pending.append((path, prepared, warnings, reports))
+    return EXIT_OK if not report.refused else EXIT_BAD_INPUT
 
 
 # -------------------------------------------------------------------------------- show

@@ -7,6 +7,10 @@ compared by their bytes (:func:`exact_key`), so a hit returns exactly what compu
 afresh would: a trial's plan cannot depend on which trials ran before it in the process
 (plans stay the same whatever the number of workers).
 
+It is also the one least-recently-used cache of the package for anything kept by a
+hashable key (a process's runners and feature sets, a prepared library): ``fresh``
+rejects a remembered result the key no longer vouches for.
+
 Not for: results that depend on anything but the key (state, time, randomness).
 """
 
@@ -55,11 +59,13 @@ class ExactMemo:
         self.misses = 0
 
     def get(self, key: Hashable, compute: Callable[[], Any],
-            keep: Callable[[Any], bool] | None = None) -> Any:
+            keep: Callable[[Any], bool] | None = None,
+            fresh: Callable[[Any], bool] | None = None) -> Any:
         """The result remembered for ``key``, else ``compute()`` (remembered unless
-        ``keep(result)`` is false; an exception it raises is not)."""
+        ``keep(result)`` is false; an exception it raises is not). A remembered result
+        for which ``fresh(result)`` is false counts as missing, and is replaced."""
         with self._lock:
-            if key in self._results:
+            if key in self._results and (fresh is None or fresh(self._results[key])):
                 self._results.move_to_end(key)
                 self.hits += 1
                 return self._results[key]

@@ -43,13 +43,13 @@ import signal
 import sys
 import time
 import warnings
-from collections import OrderedDict
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
 from drake_lfd.core.errors import InputError
+from drake_lfd.core.exact_memo import ExactMemo
 from drake_lfd.core.option_values import default_workers
 from drake_lfd.planning.options import PlanningOptions
 
@@ -76,7 +76,7 @@ RUNNERS_PER_WORKER = 4
 #: sweep's base placements share one set (loading a library costs several times what
 #: building a runner from it does). Features are read-only, so sharing them is safe.
 FEATURE_SETS_PER_PROCESS = 2
-_FEATURES: OrderedDict[tuple[str, str], dict] = OrderedDict()
+_FEATURES = ExactMemo(maxsize=FEATURE_SETS_PER_PROCESS)  # by (library, fingerprint)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -163,8 +163,8 @@ class RunnerSpec:
         from drake_lfd.io.policy_files import load_policy
 
         policy = load_policy(self.policy_file) if self.policy_file else None
-        features = _kept(_FEATURES, (self.library, self.fingerprint), FEATURE_SETS_PER_PROCESS,
-                         lambda: library_features(Library.open(self.library)))
+        features = _FEATURES.get((self.library, self.fingerprint),
+                                 lambda: library_features(Library.open(self.library)))
         return TrialRunner(self.task(), features, policy=policy, **self.runner_options())
 
 
@@ -228,23 +228,11 @@ def trial_specs(runner: RunnerSpec, *, trials: int, seed: int, record_html=None)
 
 
 # The TrialRunners of this process (a worker's, or the main process's), by spec.
-_RUNNERS: OrderedDict[RunnerSpec, object] = OrderedDict()
-
-
-def _kept(cache: OrderedDict, key, size: int, make: Callable[[], object]):
-    """``cache[key]``, made by ``make()`` if missing; ``cache`` keeps the ``size`` most
-    recently used entries."""
-    value = cache.pop(key, None)
-    if value is None:
-        value = make()
-    cache[key] = value
-    while len(cache) > size:
-        cache.popitem(last=False)
-    return value
+_RUNNERS = ExactMemo(maxsize=RUNNERS_PER_WORKER)
 
 
 def _runner_for(spec: RunnerSpec):
-    return _kept(_RUNNERS, spec, RUNNERS_PER_WORKER, spec.build)
+    return _RUNNERS.get(spec, spec.build)
 
 
 def run_trial_spec(spec: TrialSpec):

@@ -19,7 +19,13 @@ The modules:
 * ``rtde_logs``: full RTDE recordings, the TCP-offset check against ``actual_TCP_pose``.
 * ``rosbag_logs``: joint logs from ROS 1 and ROS 2 bags (``sensor_msgs/JointState``).
 * ``log_import``: a demonstration from whatever log a user has (RTDE CSV or ROS bag).
-* ``library``: the demonstration library (Eq. 14), kept as a directory.
+* ``library``: the demonstration library (Eq. 14): ``Library``, its read and edit API.
+* ``library_store``: a library directory on disk: layout, lock, temporaries, the check
+  of the manifest against the logs, an atomic copy.
+* ``library_feature_reads``: a library's features, from its cache or its logs.
+* ``demo_preparation``: a new demonstration checked and its feature computed, before a
+  library is touched.
+* ``bulk_add``: many logs added at once (``Library.add_many``), with a typed report.
 * ``library_manifest``: a library's manifest, ``library.json``.
 * ``feature_cache``: a library's feature cache, ``cache/features.sqlite``.
 * ``library_source``: a library given in any form, as its features.

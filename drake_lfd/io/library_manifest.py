@@ -39,7 +39,7 @@ from typing import NamedTuple
 
 from pydrake.math import RigidTransform
 
-from drake_lfd.core.errors import InputError
+from drake_lfd.core.errors import HINT, Hint, InputError
 from drake_lfd.core.resources import MANIFEST_NAME
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform, rigid_transform_from_pose_json
@@ -194,7 +194,7 @@ def _inside(directory, file, resolved):
     is_file, is_link = folder.get(base, (False, False))
     if is_link:
         root = resolved[None]
-        return (root / file).resolve().is_relative_to(root), is_file
+        return (root / file).resolve().is_relative_to(resolved.get("links within", root)), is_file
     return True, is_file
 
 
@@ -227,11 +227,11 @@ def _parse_entry(value, index, directory, manifest, check_logs, resolved):
             f"{value['file']!r} is not a path inside the library directory", manifest, f"{field}.file"
         )
     if check_logs and not is_file:
-        raise _manifest_error(
-            f"the joint log {value['file']} is missing; restore it, or drop the entry with "
-            f"'drake-lfd library remove {directory} {name}'",
-            manifest,
-            f"{field}.file",
+        raise InputError(
+            f"the joint log {value['file']} is missing; restore it, or drop the entry with '{HINT}'",
+            file=manifest,
+            field=f"{field}.file",
+            hints=(Hint("library remove", (str(directory), name)),),
         )
     samples = value["samples"]
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 2:
@@ -271,12 +271,15 @@ def read_manifest_bytes(directory) -> bytes:
         raise _manifest_error(f"cannot read: {error}", manifest) from None
 
 
-def read_manifest(directory, *, check_logs=True, data=None) -> Manifest:
+def read_manifest(directory, *, check_logs=True, data=None, links_within=None) -> Manifest:
     """Reads and checks ``directory/library.json``.
 
     ``check_logs=False`` skips only the check that every entry's joint log exists (what
     ``library remove`` needs to drop an entry whose log was deleted by hand). ``data``:
     the file's bytes, when the caller has read them (:func:`read_manifest_bytes`).
+    ``links_within``: a folder a log that is a symbolic link may resolve into (default:
+    the library directory). A bundled library's logs are links into the scenarios'
+    ``demos/``, so each bundled joint log is stored once (``sims/make_paper_libraries.py``).
 
     Raises
     ------
@@ -316,7 +319,7 @@ def read_manifest(directory, *, check_logs=True, data=None) -> Manifest:
         raise _manifest_error("expected a list", manifest, "demos")
     entries = []
     seen = {}
-    resolved = {}
+    resolved = {} if links_within is None else {"links within": Path(links_within).resolve()}
     for index, value in enumerate(data["demos"]):
         entry = _parse_entry(value, index, directory, manifest, check_logs, resolved)
         if entry.name.lower() in seen:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_lfd.core.errors import InputError
+from drake_lfd.core.errors import HINT, Hint, InputError
 from drake_lfd.io.atomic_files import atomic_write_bytes
 from drake_lfd.planning.q_learning import QLearningParameters, QPolicy
 from drake_lfd.planning.training import feature_hashes
@@ -203,8 +203,8 @@ def check_policy_library(policy: QPolicy, features, *, file=None, library=None, 
     policy_text = "POLICY" if file is None else str(file)
     library_text = library or "LIB"
     raise InputError(
-        problem + f"; retrain it for this library (drake-lfd train --library {library_text} "
-        f"--warm-start {policy_text} --out NEW_POLICY), or pass --allow-policy-mismatch to plan with it anyway",
+        problem + f"; retrain it for this library ({HINT}), or pass --allow-policy-mismatch to plan with it anyway",
         file=file,
         field="library_demos",
+        hints=(Hint("train", ("--library", library_text, "--warm-start", policy_text, "--out", "NEW_POLICY")),),
     )

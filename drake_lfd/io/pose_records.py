@@ -8,7 +8,8 @@ normalised). Problems are :class:`~drake_lfd.core.errors.InputError` naming file
 
 For messages that tell a user what to type, :func:`angle_text`, :func:`number_text` and
 :func:`pose_yaml_text` write numbers, angles (``pi/2`` where the angle is an exact
-multiple of pi) and poses the way task files and options read them.
+multiple of pi) and poses the way task files and options read them;
+:func:`tool_frame_arguments` an end-effector frame as ``library add``'s options.
 
 Not for: task files (they write orientations as ``euler_zyx``, see ``tasks.py``) or dual
 quaternions (``dual_quaternion.py``).
@@ -22,6 +23,7 @@ import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
+from drake_lfd.core.dual_quaternion import UNIT_NORM_TOLERANCE
 from drake_lfd.core.errors import InputError
 
 __all__ = [
@@ -33,11 +35,13 @@ __all__ = [
     'angle_text',
     'euler_zyx_from_rigid_transform',
     'pose_yaml_text',
+    'tool_frame_arguments',
+    'tool_frame_options',
 ]
 
-# A stored quaternion may be off unit norm by rounding in whatever wrote it; more than
-# this means the numbers are not a rotation (a typo, or a different convention).
-UNIT_NORM_TOLERANCE = 1e-6
+# UNIT_NORM_TOLERANCE (core/dual_quaternion.py, the one bound for every entry point): a
+# stored quaternion may be off unit norm by rounding in whatever wrote it; more than that
+# means the numbers are not a rotation (a typo, or a different convention).
 
 POSE_KEYS = ("p", "q_wxyz")
 
@@ -174,3 +178,22 @@ def pose_yaml_text(X):
     p = ", ".join(number_text(v) for v in X.translation())
     euler = ", ".join(angle_text(v) for v in euler_zyx_from_rigid_transform(X))
     return f"{{p: [{p}], euler_zyx: [{euler}]}}"
+
+
+def tool_frame_arguments(X_tool0_E):
+    """The ``library add`` options that choose the end-effector frame ``X_tool0_E``, as
+    one would type them, tuple of str: ``("--tool0-E-p", "0", "0", "0.2",
+    "--tool0-E-euler-zyx", "0", "pi/2", "0")``.
+
+    Angles are exact multiples of pi where they are (a negative one plus 2 pi, since
+    argparse takes ``-pi/2`` for an option), else radians; both read back within
+    ``io.library.END_EFFECTOR_FRAME_TOLERANCE``."""
+    p = tuple(number_text(v) for v in X_tool0_E.translation())
+    euler = tuple(angle_text(v, non_negative=True) for v in euler_zyx_from_rigid_transform(X_tool0_E))
+    return ("--tool0-E-p", *p, "--tool0-E-euler-zyx", *euler)
+
+
+def tool_frame_options(X_tool0_E):
+    """:func:`tool_frame_arguments` as one string:
+    ``--tool0-E-p 0 0 0.2 --tool0-E-euler-zyx 0 pi/2 0``."""
+    return " ".join(tool_frame_arguments(X_tool0_E))

@@ -44,6 +44,12 @@ from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pydrake.visualization import VisualizationConfig
 
 from drake_lfd.core.errors import InputError
+from drake_lfd.robot.differential_ik_law import (
+    DEFAULT_POSITION_GAIN,
+    DEFAULT_TIME_STEP_S,
+    DEFAULT_VELOCITY_LIMIT_FRACTION,
+)
+from drake_lfd.robot.joint_path import JointPathLimits
 
 __all__ = [
     "DriveConfig",
@@ -60,7 +66,19 @@ __all__ = [
     "COMPILED_METHOD",
     "CONTROLLER_METHODS",
     "GRAVITY_COMPENSATIONS",
+    "DEFAULT_MONITOR_PERIOD_S",
+    "DEFAULT_CHECK_PERIOD_S",
 ]
+
+# The defaults of the closed loop's systems, each stated once: the controller's are the
+# differential-IK law's (robot/differential_ik_law.py), the joint check's margins
+# JointPathLimits' (robot/joint_path.py); these two are the systems' own, which
+# systems/shell_monitor.py and systems/planner.py take from here.
+#: The shell monitor's sampling period, s.
+DEFAULT_MONITOR_PERIOD_S = 0.01
+#: How often the planner system (and the feature library system) look for a changed
+#: task or library, s.
+DEFAULT_CHECK_PERIOD_S = 0.05
 
 # The plant step of a bare station (fine enough for any use) and of a closed-loop run
 # (5 ms: tracks the critical configurations as well as 1 ms, far inside the success
@@ -302,9 +320,9 @@ class ControllerConfig:
     """
 
     method: str = COMPILED_METHOD
-    time_step: float = 0.01
-    position_gain: float = 20.0
-    velocity_limit_fraction: float = 0.97
+    time_step: float = DEFAULT_TIME_STEP_S
+    position_gain: float = DEFAULT_POSITION_GAIN
+    velocity_limit_fraction: float = DEFAULT_VELOCITY_LIMIT_FRACTION
 
 
 @dataclasses.dataclass
@@ -323,7 +341,7 @@ class MonitorConfig:
         the same. Needs the logger's period; a stop at a penetration samples with events.
     """
 
-    period: float = 0.01
+    period: float = DEFAULT_MONITOR_PERIOD_S
     stop_on_penetration: bool = False
     from_log: bool = True
 
@@ -332,7 +350,7 @@ class MonitorConfig:
 class PlannerSystemConfig:
     """The planner system: how often it looks for a changed task or library (s)."""
 
-    check_period: float = 0.05
+    check_period: float = DEFAULT_CHECK_PERIOD_S
 
 
 @dataclasses.dataclass
@@ -350,10 +368,10 @@ class JointCheckConfig:
         Least distance of every link and tool shape to obstacles, shells and the table, m.
     """
 
-    elbow_margin: float = 0.06
-    wrist_margin: float = 0.06
-    shoulder_margin_m: float = 0.05
-    clearance_m: float = 0.01
+    elbow_margin: float = JointPathLimits.elbow_margin
+    wrist_margin: float = JointPathLimits.wrist_margin
+    shoulder_margin_m: float = JointPathLimits.shoulder_margin_m
+    clearance_m: float = JointPathLimits.clearance_m
 
 
 @dataclasses.dataclass(eq=False)

@@ -39,6 +39,8 @@ The modules:
 * ``gym_env``: the MDP as a Gymnasium environment (optional extra).
 * ``refinement``: demonstration-guided trajectory optimization of a composed plan
   (``--refine``).
+* ``plain_optimizer``: the plain optimizer, the same program without the demonstrations'
+  tube (the baseline the refinement is compared with).
 * ``replanning``: a plan on the simulation clock (``ScheduledPlan``), and replanning
   when the task changes.
 """

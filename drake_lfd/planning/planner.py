@@ -22,7 +22,6 @@ import numpy as np
 from drake_lfd.planning.composition import CompositionProblem, Step
 from drake_lfd.core.dual_quaternion import (
     axis_angle_from_quaternion,
-    matrices_from_dual_quaternion,
     dual_quaternion_from_euler_zyx,
     dual_quaternion_relative,
     translation_from_dual_quaternion,
@@ -40,6 +39,8 @@ from drake_lfd.core.mapping import map_segment, map_segment_twists
 from drake_lfd.planning.q_learning import QPolicy, plan_q
 from drake_lfd.core.similarity import Tolerances
 from drake_lfd.core.tasks import Box, ConcreteTask, angle_candidates, stops_of
+from drake_lfd.robot.analytic_ik import UR5E_DH_D
+from drake_lfd.robot.clearance import LINK_RADIUS_M, clearances, tool_clearance_points
 from drake_lfd.robot.joint_path import JointPath, JointPathChecker, ur5e_reach_m
 from drake_lfd.robot.path_timing import TimingError, retime_plan
 from drake_lfd.core.timing import TimedPlan, TimingLimits, time_plan
@@ -52,13 +53,8 @@ __all__ = [
     'task_candidates',
     'build_problem',
     'uncovered_segments',
-    'WRIST_BEHIND_FLANGE_M',
-    'LINK_RADIUS_M',
-    'tool_clearance_points',
     'TWIST_CANDIDATES_RAD',
     'CLEARANCE_GOAL_M',
-    'box_signed_distance',
-    'path_clearance',
     'twist_order',
     'map_span_clear',
     'compose_plan',
@@ -197,23 +193,6 @@ def _reachable_candidates(problem: CompositionProblem) -> list[list[int]]:
     return [sorted(r) for r in reachable]
 
 
-# The flange and the wrist behind it (UR5e: wrist_2's axis is d6 = 0.0996 m behind the
-# flange along tool0's -z), plus the room the links take (wrist housing radius 0.045 m).
-WRIST_BEHIND_FLANGE_M = 0.0996
-LINK_RADIUS_M = 0.05
-
-
-def tool_clearance_points(X_tool0_E) -> np.ndarray:
-    """Points fixed in E to keep clear: E itself, the flange, the wrist behind it,
-    shape (3, 3), expressed in E."""
-    X_E_tool0 = X_tool0_E.inverse()
-    return np.array([
-        [0.0, 0.0, 0.0],
-        X_E_tool0.translation(),
-        X_E_tool0.multiply(np.array([0.0, 0.0, -WRIST_BEHIND_FLANGE_M])),
-    ])
-
-
 TWIST_CANDIDATES_RAD = np.radians(np.arange(0.0, 360.0, 30.0))
 # The executable-plan search tries, for a blocked step, this many demo suffixes times
 # this many twists (best first) before it forbids the step.
@@ -222,50 +201,6 @@ TWIST_ALTERNATIVES = 3
 # A mapped path this far from every keep-out box is clear; among clear twists the one
 # closest to the paper's shortest alignment (twist 0) is kept.
 CLEARANCE_GOAL_M = 0.05 + LINK_RADIUS_M
-
-
-def box_signed_distance(points: np.ndarray, centre: np.ndarray, size: np.ndarray,
-                        rotation: np.ndarray | None = None) -> np.ndarray:
-    """Signed distance of points (n, 3) to a box (negative inside), (n,): its centre,
-    full edges and axes in W (``rotation`` (3, 3), default axis-aligned); the same as
-    :meth:`drake_lfd.core.tasks.Box.signed_distance`."""
-    from drake_lfd.core.tasks import Box
-
-    box = Box(name="", centre=centre, size=size, rotation=np.eye(3) if rotation is None else rotation)
-    return box.signed_distance(points)
-
-
-def _clearances(poses: np.ndarray, keep_out=(), floor_z=None,
-                points_E: np.ndarray | None = None) -> np.ndarray:
-    """Distance of every tracked point along the path to the nearest keep-out box
-    (:meth:`Box.signed_distance <drake_lfd.core.tasks.Box.signed_distance>`, boxes
-    of any orientation) or the floor, shape (n * k,): of the origins of ``poses``
-    (n, 8), or of ``points_E`` (k, 3), points fixed in E such as the flange and the
-    wrist behind it. The floor is a level table top's height, or a tilted table (a
-    Box: the plane of its top face, :meth:`~drake_lfd.core.tasks.Box.height_above_top`);
-    ``Workcell.planner_floor`` gives either."""
-    from drake_lfd.core.tasks import Box
-
-    if points_E is None:
-        p = translation_from_dual_quaternion(poses)
-    else:
-        T = matrices_from_dual_quaternion(poses)
-        p = (np.einsum("nij,kj->nki", T[:, :3, :3], np.asarray(points_E)) + T[:, None, :3, 3]).reshape(-1, 3)
-    distance = np.full(len(p), np.inf)
-    for box in keep_out:
-        distance = np.minimum(distance, box.signed_distance(p))
-    if isinstance(floor_z, Box):
-        distance = np.minimum(distance, floor_z.height_above_top(p))
-    elif floor_z is not None:
-        distance = np.minimum(distance, p[:, 2] - floor_z)
-    return distance
-
-
-def path_clearance(poses: np.ndarray, keep_out=(), floor_z: float | None = None,
-                   points_E: np.ndarray | None = None) -> float:
-    """Least distance of the tool path to the keep-out boxes and the floor (inf with
-    neither); see :func:`_clearances`."""
-    return float(np.min(_clearances(poses, keep_out, floor_z, points_E), initial=np.inf))
 
 
 def twist_order(feature_poses, allocation, task_poses, keep_out=(), floor_z=None, points_E=None,
@@ -285,7 +220,7 @@ def twist_order(feature_poses, allocation, task_poses, keep_out=(), floor_z=None
 
     def shortfalls(poses: np.ndarray) -> list[float]:
         """Each path's (a, N, 8) total shortfall below the clearance goal, rounded."""
-        distance = _clearances(poses.reshape(-1, 8), keep_out, floor_z, points_E).reshape(len(poses), -1)
+        distance = clearances(poses.reshape(-1, 8), keep_out, floor_z, points_E).reshape(len(poses), -1)
         return [round(float(np.sum(np.maximum(CLEARANCE_GOAL_M - row, 0.0))), 6) for row in distance]
 
     twists = TWIST_CANDIDATES_RAD
@@ -390,7 +325,7 @@ def out_of_reach(task: ConcreteTask) -> list[InfeasibleSegment]:
     """The critical configurations farther from the shoulder than the arm can reach
     (:func:`~drake_lfd.robot.joint_path.ur5e_reach_m`), one segment each (the one
     arriving at it; con_1 -> con_2 for con_1)."""
-    shoulder = task.X_WB.multiply(np.array([0.0, 0.0, 0.1625]))
+    shoulder = task.X_WB.multiply(np.array([0.0, 0.0, UR5E_DH_D[0]]))  # (d1: the shoulder above the base)
     reach = ur5e_reach_m(task.X_tool0_E)
     segments = []
     n = len(task.critical_configurations)
@@ -444,7 +379,7 @@ def plan_composition(
 
     Each span's free twist keeps the tool path clear of the task's obstacles and shells
     and above ``floor_z``; ``clearance_points_E`` (k, 3) are the points fixed in E that
-    must stay clear (default: :func:`tool_clearance_points` of the task's ``X_tool0_E``).
+    must stay clear (default: :func:`~drake_lfd.robot.clearance.tool_clearance_points` of the task's ``X_tool0_E``).
     """
     if not isinstance(options, PlanningOptions):
         raise TypeError(f"options must be PlanningOptions, got {type(options).__name__}")

@@ -31,9 +31,9 @@ iteration counts (:class:`SolverBudget`) per solve and a fixed number of solves,
 by time, and the bounds are the task's ``timing:`` limits at its ``limit_fraction``:
 the same inputs give the same plan on any machine under any load.
 
-:func:`plain_plan` is the peer without demonstrations: the same program and checks, from
-straight joint-space lines between the composed path's configurations at the critical
-configurations, with no tube and a duration cost alone.
+:func:`~drake_lfd.planning.plain_optimizer.plain_plan` is the peer without demonstrations:
+the same program and checks, from straight joint-space lines between the composed path's
+configurations at the critical configurations, with no tube and a duration cost alone.
 
 Not for: composing demonstrations (``planner.py``), the path-constraint measure
 (``robot/path_constraints.py``) or the Drake program itself
@@ -80,7 +80,6 @@ __all__ = [
     "TrajectoryLimits",
     "OptimizationScene",
     "refine_plan",
-    "plain_plan",
     "tube_deviation",
     "path_fractions_of",
     "shape_deviation",
@@ -896,11 +895,3 @@ def refine_plan(result: PlanResult, checker: JointPathChecker, *, scene: Optimiz
     options : RefinementOptions
     """
     return _optimize(result, checker, scene, options, "refine")
-
-
-def plain_plan(result: PlanResult, checker: JointPathChecker, *, scene: OptimizationScene | None = None,
-               options: RefinementOptions = RefinementOptions()) -> PlanResult:
-    """The plain optimizer's plan, like :func:`refine_plan` but without the tube, from
-    straight joint-space lines between ``result``'s configurations at its critical
-    configurations (pinned at the same path fractions)."""
-    return _optimize(result, checker, scene, options, "plain")

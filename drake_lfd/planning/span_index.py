@@ -45,13 +45,13 @@ Not for: the similarity test itself (``core/similarity.py``) or the table built 
 
 from __future__ import annotations
 
-import collections
 from typing import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from drake_lfd.core.dual_quaternion import IDENTITY_DUAL_QUATERNION
+from drake_lfd.core.exact_memo import ExactMemo
 from drake_lfd.core.features import Feature
 from drake_lfd.core.fidelity import demo_delta_terms, deltas_excursions
 from drake_lfd.core.similarity import Tolerances, rotation_distance
@@ -209,7 +209,7 @@ class PreparedLibrary:
         return self._excursions[demos]
 
 
-_prepared: collections.OrderedDict = collections.OrderedDict()
+_PREPARED = ExactMemo(maxsize=_PREPARED_KEPT)  # (features, PreparedLibrary) by the features' ids
 
 
 def prepared_library(features: Sequence[Feature], tolerances: Tolerances) -> PreparedLibrary:
@@ -218,12 +218,7 @@ def prepared_library(features: Sequence[Feature], tolerances: Tolerances) -> Pre
     trials of a task and its replans do not stack and index the library again."""
     features = tuple(features)
     key = (tuple(id(f) for f in features), tolerances)
-    entry = _prepared.get(key)
-    if entry is not None and all(a is b for a, b in zip(entry[0], features)):
-        _prepared.move_to_end(key)
-        return entry[1]
-    prepared = PreparedLibrary(features, tolerances)
-    _prepared[key] = (features, prepared)
-    while len(_prepared) > _PREPARED_KEPT:
-        _prepared.popitem(last=False)
+    # (An id is reused once its object is gone: a kept entry counts only for the same objects.)
+    _, prepared = _PREPARED.get(key, lambda: (features, PreparedLibrary(features, tolerances)),
+                                fresh=lambda entry: all(a is b for a, b in zip(entry[0], features)))
     return prepared

@@ -29,6 +29,8 @@ The modules:
 * ``workcell``: the one description of the work cell: robot base, table, obstacles,
   shells and tool.
 * ``scene``: the work cell's geometry on the plant; signed distances.
+* ``clearance``: the tool's clearance points and their signed distances to keep-out
+  boxes and the floor along a path of poses (plain numpy).
 * ``motion_bounds``: how far a robot geometry can move when the joints turn (bounds
   that prune distance queries).
 """

@@ -30,7 +30,7 @@ from pydrake.solvers import Solve
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.read_only_arrays import read_only_array
 from drake_lfd.core.tasks import Box
-from drake_lfd.robot.analytic_ik import ur5e_branches
+from drake_lfd.robot.analytic_ik import UR5E_DH_D, ur5e_branches
 from drake_lfd.robot.kinematics import BASE_FRAME_NAME, END_EFFECTOR_FRAME_NAME, TOOL0_FRAME_NAME
 from drake_lfd.robot.scene import KinematicScene
 
@@ -65,8 +65,8 @@ NOMINAL_WEIGHTS = read_only_array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])
 # The elbow-up posture of UR's documentation, tool pointing down, at shoulder_pan 0
 # (where the arm reaches along the base's -x axis).
 ELBOW_UP_POSTURE = read_only_array([0.0, -1.2, 1.6, -1.97, -math.pi / 2, 0.0])
-# The UR5e's lateral offset of the wrist from the arm's plane (d4), metres.
-_WRIST_OFFSET_M = 0.1333
+# The UR5e's lateral offset of the wrist from the arm's plane (d4 of the DH table), metres.
+_WRIST_OFFSET_M = UR5E_DH_D[3]
 
 
 class UnreachableConfigurationError(InputError):

@@ -29,6 +29,7 @@ from pydrake.systems.framework import Context, DiagramBuilder, EventStatus, Leaf
 
 from drake_lfd.core.demonstrations import Demonstration
 from drake_lfd.core.features import DEFAULT_NUM_SAMPLES, DEFAULT_ROTATION_LENGTH_M, Feature
+from drake_lfd.io.simulation_config import DEFAULT_CHECK_PERIOD_S
 from drake_lfd.robot.kinematics import UR5eKinematics, dual_quaternions_from_demonstration
 from drake_lfd.systems.demo_recorder import NO_DEMONSTRATION
 
@@ -130,7 +131,7 @@ class FeatureLibrarySystem(LeafSystem):
         features: Mapping[str, Feature],
         X_tool0_E: RigidTransform | None = None,
         accept_demonstrations: bool = False,
-        check_period: float = 0.05,
+        check_period: float = DEFAULT_CHECK_PERIOD_S,
         num_samples: int = DEFAULT_NUM_SAMPLES,
         rotation_length_m: float = DEFAULT_ROTATION_LENGTH_M,
     ):

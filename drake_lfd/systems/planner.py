@@ -25,6 +25,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, DiagramBuilder, EventStatus, LeafSystem, OutputPort
 
 from drake_lfd.core.tasks import ConcreteTask
+from drake_lfd.io.simulation_config import DEFAULT_CHECK_PERIOD_S
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.planner import PlanResult, plan_composition
@@ -95,7 +96,7 @@ class PlannerSystem(LeafSystem):
         start_time_s: float = 0.0,
         floor_z: float | None = None,
         checker: JointPathChecker | None = None,
-        check_period: float | None = 0.05,
+        check_period: float | None = DEFAULT_CHECK_PERIOD_S,
     ):
         super().__init__()
         if not isinstance(options, PlanningOptions):

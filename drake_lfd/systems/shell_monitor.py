@@ -42,11 +42,11 @@ from pydrake.geometry import GeometryId, QueryObject
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import EventStatus, LeafSystem
 
+from drake_lfd.io.simulation_config import DEFAULT_MONITOR_PERIOD_S
 from drake_lfd.robot.motion_bounds import motion_bounds
 
 __all__ = ['DEFAULT_MONITOR_PERIOD_S', 'BoxClearance', 'ShellMonitor']
 
-DEFAULT_MONITOR_PERIOD_S = 0.01
 
 @dataclass(frozen=True)
 class BoxClearance:
