@@ -134,6 +134,8 @@ def test_judge_run_reads_the_trials_path_constraints_from_the_run(pipeline, task
     judgement = drake_lfd.judge_run(strict)
     assert not judgement.success
     assert any(failure.startswith("path constraint con_1..con_4") for failure in judgement.failures)
+    # Each failure is a record of its kind (summaries group by it, never by the text).
+    assert [(f.kind, f.configuration) for f in judgement.failures] == [("path_constraint", 1)]
     # Constraints passed explicitly replace the run's own.
     assert drake_lfd.judge_run(strict, path_constraints=()).success
 
@@ -145,3 +147,5 @@ def test_a_run_stopped_before_the_plan_is_executed_is_not_a_success(pipeline, ta
     judgement = pipeline.trial_judgement(simulator.get_context())
     assert not judgement.success
     assert any("not reached" in failure for failure in judgement.failures)
+    assert {f.kind for f in judgement.failures} == {"not_reached"}
+

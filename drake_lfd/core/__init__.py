@@ -28,6 +28,8 @@ The modules:
 * ``guidance``: the guiding hand's path in a simulated kinesthetic demonstration.
 * ``synthetic_library``: hand-built demonstrations with the motions of the paper's
   Fig. 5, as pose sequences.
+* ``failures``: why a trial failed, as records of a closed set of kinds (each also its
+  line), so summaries never parse text.
 * ``errors``: errors users can act on (``InputError``) and the command line's exit
   codes.
 * ``option_values``: the closed sets and defaults of user options (planners, costs,

@@ -4,7 +4,7 @@ A run succeeds when every critical configuration is reached within 5 mm and 2 de
 it is due, the task's path constraints hold along the logged motion, no robot geometry
 penetrates an obstacle or a safety shell, and the joints stay inside their position and
 speed limits (docs/method.rst, Closed loop and success). :func:`judge_run` returns the
-verdict with one line per failed criterion.
+verdict with one record per failed criterion (``core/failures.py``: its kind and its line).
 
 Not for: running the simulation (``pipeline.py``, ``closed_loop.py``) or the run's record
 (``trial_result.py``).
@@ -17,10 +17,10 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
-from pydrake.math import RotationMatrix
 
-from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
+from drake_lfd.core.failures import Failure
 from drake_lfd.diagrams.trial_result import ClosedLoopResult
+from drake_lfd.robot.path_constraints import constraint_rotation, describe_constraint, orientation_deviations
 from drake_lfd.robot.kinematics import UR5E_JOINT_NAMES, UR5eKinematics
 
 __all__ = ["RunJudgement", "judge_run", "SUCCESS_POSITION_TOLERANCE_M", "SUCCESS_ROTATION_TOLERANCE_RAD",
@@ -33,7 +33,8 @@ SUCCESS_SINGULARITY_MARGIN = 0.05
 
 @dataclass(frozen=True)
 class RunJudgement:
-    """The verdict: ``success`` and one line per failed criterion."""
+    """The verdict: ``success`` and one :class:`~drake_lfd.core.failures.Failure` per failed
+    criterion (its line, with its kind)."""
 
     success: bool
     failures: list = field(default_factory=list)
@@ -90,21 +91,18 @@ def judge_run(
 
     for error in result.critical_errors:
         if not error.reached:
-            failures.append(
-                f"con_{error.con}: not reached (the run stopped at t = {result.sim_time_s:.2f} s: "
-                f"{result.stop_reason})"
-            )
+            failures.append(Failure(
+                "not_reached", f"con_{error.con}: not reached (the run stopped at t = {result.sim_time_s:.2f} s: "
+                f"{result.stop_reason})", configuration=error.con))
             continue
         if not error.position_m <= position_tolerance_m:
-            failures.append(
-                f"con_{error.con}: position error {1000 * error.position_m:.1f} mm > "
-                f"{1000 * position_tolerance_m:g} mm (t = {error.time_s:.2f} s)"
-            )
+            failures.append(Failure(
+                "position_error", f"con_{error.con}: position error {1000 * error.position_m:.1f} mm > "
+                f"{1000 * position_tolerance_m:g} mm (t = {error.time_s:.2f} s)", configuration=error.con))
         if not error.rotation_rad <= rotation_tolerance_rad:
-            failures.append(
-                f"con_{error.con}: rotation error {math.degrees(error.rotation_rad):.2f} deg > "
-                f"{math.degrees(rotation_tolerance_rad):g} deg (t = {error.time_s:.2f} s)"
-            )
+            failures.append(Failure(
+                "rotation_error", f"con_{error.con}: rotation error {math.degrees(error.rotation_rad):.2f} deg > "
+                f"{math.degrees(rotation_tolerance_rad):g} deg (t = {error.time_s:.2f} s)", configuration=error.con))
 
     due = [error.time_s for error in result.critical_errors]
     for constraint in path_constraints:
@@ -112,25 +110,22 @@ def judge_run(
         window = (result.t >= t_from - 1e-9) & (result.t <= t_to + 1e-9)
         if not np.any(window):
             continue
-        R_target = rigid_transform_from_euler_zyx(np.zeros(3), constraint.euler_zyx).rotation()
-        angles = np.array(
-            [_rotation_from(kinematics.X_WE(q).rotation(), R_target) for q in result.q[window]]
-        )
+        R_WE = np.array([kinematics.X_WE(q).rotation().matrix() for q in result.q[window]])
+        angles = orientation_deviations(R_WE, constraint_rotation(constraint))
         worst = int(np.argmax(angles))
         if angles[worst] > constraint.tolerance_rad:
-            failures.append(
-                f"path constraint con_{constraint.con_from}..con_{constraint.con_to}: tool orientation "
+            failures.append(Failure(
+                "path_constraint",
+                f"{describe_constraint(constraint)}: tool orientation "
                 f"{math.degrees(angles[worst]):.1f} deg from euler_zyx "
                 f"{np.round(constraint.euler_zyx, 4).tolist()} > {math.degrees(constraint.tolerance_rad):g} deg "
-                f"(t = {result.t[window][worst]:.2f} s)"
-            )
+                f"(t = {result.t[window][worst]:.2f} s)", configuration=constraint.con_from))
 
     for clearance in result.clearances:
         if not clearance.distance_m > 0.0:
-            failures.append(
-                f"{clearance.describe()} penetrated by {clearance.robot_geometry} "
-                f"(signed distance {1000 * clearance.distance_m:.1f} mm at t = {clearance.time_s:.2f} s)"
-            )
+            failures.append(Failure(
+                "penetration", f"{clearance.describe()} penetrated by {clearance.robot_geometry} "
+                f"(signed distance {1000 * clearance.distance_m:.1f} mm at t = {clearance.time_s:.2f} s)"))
 
     for j, name in enumerate(UR5E_JOINT_NAMES):
         if len(result.q) == 0:
@@ -138,32 +133,27 @@ def judge_run(
         outside = (result.q[:, j] < lower[j]) | (result.q[:, j] > upper[j])
         if np.any(outside):
             k = int(np.argmax(outside))
-            failures.append(
-                f"{name}: position {result.q[k, j]:.3f} rad outside [{lower[j]:.3f}, {upper[j]:.3f}] "
-                f"(t = {result.t[k]:.2f} s)"
-            )
+            failures.append(Failure(
+                "joint_position_limit", f"{name}: position {result.q[k, j]:.3f} rad outside "
+                f"[{lower[j]:.3f}, {upper[j]:.3f}] (t = {result.t[k]:.2f} s)"))
         speeds = np.abs(result.qdot[:, j])
         k = int(np.argmax(speeds))
         if speeds[k] > velocity_limits[j]:
-            failures.append(
-                f"{name}: speed {speeds[k]:.2f} rad/s > limit {velocity_limits[j]:.2f} rad/s "
-                f"(t = {result.t[k]:.2f} s)"
-            )
+            failures.append(Failure(
+                "joint_speed_limit", f"{name}: speed {speeds[k]:.2f} rad/s > limit {velocity_limits[j]:.2f} rad/s "
+                f"(t = {result.t[k]:.2f} s)"))
     record = result.collaboration
     if record is not None and record.violation_count:
-        failures.append(
+        failures.append(Failure(
+            "separation",
             f"separation: the robot moved toward a person closer than the protective separation distance S_p "
             f"in {record.violation_count} sample(s) (first at t = {record.first_violation_s():.2f} s; "
-            f"least margin {1000 * record.min_margin_m:.0f} mm)")
+            f"least margin {1000 * record.min_margin_m:.0f} mm)"))
     if len(result.q):
         for j, what in ((2, "elbow straight (|sin q3|"), (4, "wrist aligned (|sin q5|")):
             margin = np.abs(np.sin(result.q[:, j]))
             k = int(np.argmin(margin))
             if margin[k] < singularity_margin:
-                failures.append(f"singularity: {what} = {margin[k]:.3f} < {singularity_margin:g} "
-                                f"at t = {result.t[k]:.2f} s)")
+                failures.append(Failure("singularity", f"singularity: {what} = {margin[k]:.3f} < "
+                                        f"{singularity_margin:g} at t = {result.t[k]:.2f} s)"))
     return RunJudgement(success=not failures, failures=failures)
-
-
-def _rotation_from(R_a: RotationMatrix, R_b: RotationMatrix) -> float:
-    return float(R_a.inverse().multiply(R_b).ToAngleAxis().angle())

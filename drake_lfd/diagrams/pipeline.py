@@ -65,6 +65,7 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, System
 from pydrake.systems.primitives import LogVectorOutput
 
+from drake_lfd.core.failures import Failure
 from drake_lfd.core.features import Feature
 from drake_lfd.core.tasks import Box, ConcreteTask, Task, draw_trial
 from drake_lfd.core.people import CollaborationParameters
@@ -523,12 +524,17 @@ class Pipeline(Diagram):
         included); a trial with nothing planned fails with the planner's reasons."""
         scheduled = self.plan_output_port.Eval(context)
         if scheduled is None or scheduled is NO_PLAN or scheduled.result.status == NO_PLAN.result.status:
-            return RunJudgement(False, ["nothing planned"])
+            return RunJudgement(False, [Failure("nothing_planned", "nothing planned")])
         plan = scheduled.result
         if plan.status == "no_executable_plan":
-            return RunJudgement(False, ["no executable plan: " + segment.describe() for segment in plan.infeasible])
+            return RunJudgement(False, [
+                Failure("no_executable_plan", "no executable plan: " + segment.describe(),
+                        configuration=segment.con_from, cause=segment.reason)
+                for segment in plan.infeasible])
         if not plan.planned:
-            return RunJudgement(False, ["demonstration requested: " + line for line in describe_uncovered(plan)])
+            return RunJudgement(False, [
+                Failure("demonstration_requested", "demonstration requested: " + line, configuration=segment.con_from)
+                for segment, line in zip(plan.uncovered, describe_uncovered(plan))])
         return judge_run(self.trial_result(context), kinematics=self.kinematics)
 
     def trial_succeeded(self, system: System, context: Context) -> float:

@@ -29,6 +29,7 @@ from drake_lfd.io.simulation_config import PipelineConfig
 from drake_lfd.diagrams.pipeline import build_pipeline
 from drake_lfd.diagrams.recording_meshcat import recording_meshcat
 from drake_lfd.diagrams.judging import judge_run
+from drake_lfd.core.failures import Failure, failure_labels
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
 from drake_lfd.robot.kinematics import UR5eKinematics
@@ -66,7 +67,7 @@ class TrialOutcome:
     plan: PlanResult | None
     run: ClosedLoopResult | None
     success: bool
-    failures: list[str]
+    failures: list[Failure]  # (core/failures.py: each its line, with its kind)
 
     @property
     def composition_label(self) -> str | None:
@@ -150,7 +151,7 @@ class TrialRunner:
             scheduled = runner.plan(concrete)
         except InputError as error:  # con_1 unreachable for the UR5e
             plan = runner.pipeline.plan_output_port.Eval(runner.simulator.get_context()).result
-            return TrialOutcome(trial, seed, plan, None, False, [str(error)])
+            return TrialOutcome(trial, seed, plan, None, False, [Failure("unreachable", str(error))])
         plan = scheduled.result
         if not plan.planned:  # the pipeline's verdict: no executable plan, or a request
             judgement = runner.pipeline.trial_judgement(runner.simulator.get_context())
@@ -221,6 +222,7 @@ def trial_json(outcome: TrialOutcome) -> dict:
         "seed": outcome.seed,
         "success": outcome.success,
         "failures": outcome.failures,
+        "failure_kinds": failure_labels(outcome.failures),
         "status": outcome.plan.status if outcome.plan else None,
         "critical_configurations": critical_configurations_json(outcome.plan) if outcome.plan else [],
         "composition": composition_json(outcome.plan) if outcome.plan else [],

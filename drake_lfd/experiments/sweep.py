@@ -7,7 +7,7 @@ row (:func:`sweep_row`): its inputs (the base placement, trial, seed, the concre
 values of the task's variables), then the fields of ``simulate``'s trial records. A
 row's inputs are its key (:func:`row_key`): ``--resume`` skips the trials whose key is on
 disk. :func:`sweep_summary` aggregates the rows (success per base placement, the best
-placements, failures by kind, :func:`failure_kind`), and three figures show them:
+placements, failures by kind, :func:`failure_kinds_of`), and three figures show them:
 success over the base grid, over the task's variables, and the failures by kind.
 
 Not for: running trials (:mod:`drake_lfd.experiments.parallel_trials`) or the command line.
@@ -18,7 +18,6 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-import re
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +36,7 @@ __all__ = [
     "base_grid",
     "sweep_row",
     "row_key",
-    "failure_kind",
+    "failure_kinds_of",
     "sweep_summary",
     "success_by_base_figure",
     "success_by_variable_figure",
@@ -125,30 +124,11 @@ def row_key(row: dict) -> tuple:
             *(round(float(row[name]), _KEY_DIGITS) for name in BASE_FIELDS), int(row["trial"]), int(row["seed"]))
 
 
-_KINDS = (  # (pattern on a failure reason, kind), first match wins
-    (re.compile(r"^no executable plan: .*?: (\w+): "), None),  # kind from the blocking reason
-    (re.compile(r"^no executable plan"), "no executable plan"),
-    (re.compile(r"^demonstration requested"), "demonstration requested"),
-    (re.compile(r"^con_\d+: not reached"), "critical configuration not reached"),
-    (re.compile(r"^con_\d+: position error"), "critical configuration position error"),
-    (re.compile(r"^con_\d+: rotation error"), "critical configuration rotation error"),
-    (re.compile(r"^path constraint"), "path constraint"),
-    (re.compile(r"penetrated by"), "penetration"),
-    (re.compile(r"^\w+: position .* outside"), "joint position limit"),
-    (re.compile(r"^\w+: speed"), "joint speed limit"),
-    (re.compile(r"^singularity"), "singularity"),
-    (re.compile(r"reach", re.IGNORECASE), "unreachable"),
-)
-
-
-def failure_kind(reason: str) -> str:
-    """The kind of a failure reason: ``"no executable plan (reach)"``, ``"penetration"``,
-    ``"critical configuration position error"``, ... (``"other"`` when none fits)."""
-    for pattern, kind in _KINDS:
-        match = pattern.search(reason)
-        if match:
-            return kind if kind is not None else f"no executable plan ({match.group(1)})"
-    return "other"
+def failure_kinds_of(row: dict) -> list[str]:
+    """The failure labels of a row (``failure_kinds``: ``"no executable plan (reach)"``,
+    ``"penetration"``, ... from each failure record's kind, :mod:`drake_lfd.core.failures`);
+    ``"other"`` for each failure of a row written before rows carried them."""
+    return list(row.get("failure_kinds") or ["other"] * len(row["failures"]))
 
 
 def _placement(row: dict) -> tuple:
@@ -173,7 +153,7 @@ def sweep_summary(rows: list[dict], *, grid: BaseGrid, task_base: BasePlacement,
     best_rate = max((entry["success_rate"] for entry in rated), default=None)
     kinds: dict[str, int] = {}
     for row in rows:
-        for kind in sorted({failure_kind(reason) for reason in row["failures"]}):
+        for kind in sorted(set(failure_kinds_of(row))):
             kinds[kind] = kinds.get(kind, 0) + 1
     return {
         **settings,
