@@ -465,19 +465,22 @@ class RepeatedPanBlockers:
         root, wrist = self._branch
         poses = self._tool0_poses(plan)
         pans = shoulder_pan_roots(poses)[:, root]
-        # Poses the branch cannot reach (NaN) lie past the singularity: a sine of zero.
-        elbow, wrist_sine = (np.nan_to_num(sines, nan=0.0) for sines in elbow_and_wrist_sines(poses, root, wrist))
+        # Poses the branch cannot reach (NaN) lie past the singularity (said so below).
+        elbow, wrist_sine = elbow_and_wrist_sines(poses, root, wrist)
         limits = self._checker.limits
         due = [int(i) for i in plan.critical_indices]
         for span in range(len(due) - 1) if spans is None else spans:
             window = slice(due[span], due[span + 1] + 1)
             for sines, margin, what, joint in ((elbow[window], limits.elbow_margin, "elbow straight", 3),
                                                (wrist_sine[window], limits.wrist_margin, "wrist aligned", 5)):
-                if len(sines) and sines.min() < SINGULARITY_DEPTH * margin:
-                    k = int(np.flatnonzero(sines < margin)[0])
+                below = np.isnan(sines) | (sines < margin)
+                if len(sines) and (np.isnan(sines).any() or np.nanmin(sines) < SINGULARITY_DEPTH * margin):
+                    k = int(np.flatnonzero(below)[0])
                     self.ruled_out += 1
-                    return Blocker("singularity", f"{what} (|sin q{joint}| = {float(sines.min()):.3f} < {margin:g})",
-                                   max(float(plan.times[due[span] + k]), 1e-9), span)
+                    detail = (f"{what}: the poses leave the reach of the arm's branch past it (|sin q{joint}| "
+                              f"would pass 0 < {margin:g})" if np.isnan(sines).any() else
+                              f"{what} (|sin q{joint}| = {float(np.nanmin(sines)):.3f} < {margin:g})")
+                    return Blocker("singularity", detail, max(float(plan.times[due[span] + k]), 1e-9), span)
             if self._sweeps is not None:
                 blocker = self._pan_blocker(pans[window], plan.times[window], span)
                 if blocker is not None:
