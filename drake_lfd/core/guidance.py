@@ -301,6 +301,6 @@ class SampledGuidance(NamedTuple):
     v_WH: np.ndarray
     w_WH: np.ndarray
 
-    def index(self, t) -> int:
+    def index(self, t) -> int:  # type: ignore[override]  # (a sample's index by time, not tuple.index)
         """Index of the sample nearest time ``t`` (clamped to the grid)."""
         return min(max(int(round(t / self.time_step_s)), 0), self.p_WH.shape[0] - 1)

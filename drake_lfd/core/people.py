@@ -251,15 +251,16 @@ class Person:
         shoulders = [ground + up * shoulder_z + side * body.shoulder_half_width_m * np.append(left, 0.0)
                      for side in (1.0, -1.0)]
         hands = []
-        amount = 0.0 if self.motion.reach is None else self.motion.reach.amount(t)
+        reach = self.motion.reach
+        amount = 0.0 if reach is None else reach.amount(t)
         for shoulder in shoulders:
             down = -up
             direction = down
-            if amount > 0.0:
-                toward = np.asarray(self.motion.reach.point) - shoulder
-                toward = toward / max(np.linalg.norm(toward), 1e-9)
+            if reach is not None and amount > 0.0:
+                toward = np.asarray(reach.point) - shoulder
+                toward = toward / max(float(np.linalg.norm(toward)), 1e-9)
                 blend = (1.0 - amount) * down + amount * toward
-                direction = blend / max(np.linalg.norm(blend), 1e-9)
+                direction = blend / max(float(np.linalg.norm(blend)), 1e-9)
             hands.append(shoulder + direction * (body.arm_length_m - body.arm_radius_m))
         head = ground + up * (body.head_top_m - body.head_radius_m)
         pelvis = ground + up * (0.5 * body.shoulder_height_m)

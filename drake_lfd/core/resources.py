@@ -55,7 +55,7 @@ def bundled_library_directories() -> tuple[Path, Path]:
 
 def bundled_library_names() -> list[str]:
     """Names of the libraries bundled with drake-lfd (sorted; may be empty)."""
-    names = set()
+    names: set[str] = set()
     for directory in bundled_library_directories():
         if directory.is_dir():
             names.update(p.name for p in directory.iterdir() if (p / MANIFEST_NAME).is_file())

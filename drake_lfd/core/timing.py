@@ -201,7 +201,7 @@ def time_plan(
     poses = check_unit_dual_quaternions(poses, "poses")
     if poses.ndim != 2 or len(poses) == 0:
         raise ValueError(f"poses must have shape (n >= 1, 8), got {poses.shape}")
-    critical = [int(i) for i in critical_indices]
+    critical = [int(i) for i in np.asarray(critical_indices).ravel()]
     if not critical or critical[0] != 0 or critical[-1] != len(poses) - 1 or np.any(np.diff(critical) <= 0):
         raise ValueError(f"critical_indices must increase from 0 to {len(poses) - 1}: {critical}")
     if not (max_speed_m_s > 0.0 and max_angular_speed_rad_s > 0.0):
