@@ -81,11 +81,11 @@ def tasks(pick_and_place: int, seed: int, near_base: int = 0) -> list[tuple[str,
 def plan_once(text: str, features, before: bool):
     """(result, seconds) of planning the task as ``plan`` does; ``before``: without the
     pre-check and the merging of reasons."""
-    saved = planner_module.blocked_configurations, planner_module.distinct_reasons, planner_module.RepeatedPanBlockers
+    saved = planner_module.blocked_configurations, planner_module.distinct_reasons, planner_module.PoseBlockers
     if before:
         planner_module.blocked_configurations = lambda problem, checker: []
         planner_module.distinct_reasons = tuple
-        planner_module.RepeatedPanBlockers = lambda checker: None
+        planner_module.PoseBlockers = lambda checker: None
     try:
         task = task_from_spec(task_spec_from_text(text), file="bench")
         trial = draw_trial(task, 0)
@@ -97,7 +97,7 @@ def plan_once(text: str, features, before: bool):
         return result, time.perf_counter() - start
     finally:
         (planner_module.blocked_configurations, planner_module.distinct_reasons,
-         planner_module.RepeatedPanBlockers) = saved
+         planner_module.PoseBlockers) = saved
 
 
 def plan_command_cpu(text: str) -> tuple[int, float]:

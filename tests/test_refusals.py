@@ -173,7 +173,7 @@ def test_a_branch_is_the_side_of_each_singularity():
     assert mut.branch_signature(turned) == mut.branch_signature(q)
 
 
-def _plan_near_base(seed, *, repeats=True):
+def _plan_near_base(seed, *, predict=True):
     """Plans pick-and-place task ``seed`` with a shell beside the base as ``plan`` does;
     returns (result, follows)."""
     import drake_lfd.planning.planner as planner_module
@@ -193,16 +193,16 @@ def _plan_near_base(seed, *, repeats=True):
         follows.append(1)
         return original(self, *args, **kwargs)
 
-    saved = planner_module.RepeatedPanBlockers
+    saved = planner_module.PoseBlockers
     try:
         JointPathChecker.follow = counted
-        if not repeats:
-            planner_module.RepeatedPanBlockers = lambda checker: None
+        if not predict:
+            planner_module.PoseBlockers = lambda checker: None
         result = planner_module.plan_composition(trial, library_features(Library.open("paper5")), PlanningOptions(),
                                                  floor_z=workcell.planner_floor, checker=checker)
     finally:
         JointPathChecker.follow = original
-        planner_module.RepeatedPanBlockers = saved
+        planner_module.PoseBlockers = saved
     return result, len(follows)
 
 
@@ -216,7 +216,7 @@ def test_compositions_whose_poses_show_the_blocker_are_ruled_out_unfollowed(seed
     start's branch deep into a singularity, are ruled out unfollowed: a fraction of the
     follows, the same refusal."""
     result, follows = _plan_near_base(seed)
-    plain, plain_follows = _plan_near_base(seed, repeats=False)
+    plain, plain_follows = _plan_near_base(seed, predict=False)
     assert result.status == plain.status == "no_executable_plan"
     assert follows < plain_follows / 2
     assert any(blocker in s.detail for s in result.infeasible)

@@ -109,7 +109,7 @@ def search_executable(
     max_starts: int = MAX_START_BRANCHES,
     refusal: Callable[[CompositionProblem], list[InfeasibleSegment]] | None = None,
     path_constraints: Sequence = (),
-    repeats: Callable[[], object] | None = None,
+    pose_blockers: Callable[[], object] | None = None,
 ) -> ExecutableSearch:
     """Lazy search for an executable composition (see the module docstring).
 
@@ -136,10 +136,11 @@ def search_executable(
     turns the tool beyond one is blocked like a collision, and the search tries the
     others (:meth:`~drake_lfd.robot.joint_path.JointPathChecker.follow`).
 
-    ``repeats()`` makes, per start branch, a record of measured blockers
-    (``planning/refusals.RepeatedPanBlockers``): its ``record(plan, path)`` learns from
-    each blocked follow and its ``repeated(plan)`` returns the blocker a composition
-    repeats, which then stands for its follow (the composition is ruled out unfollowed).
+    ``pose_blockers()`` makes, per start branch, the judge of compositions by their poses
+    alone (``planning/refusals.PoseBlockers``): its ``record(plan, path)`` learns from
+    each blocked follow and its ``blocker_of(plan, spans)`` returns the blocker a
+    composition's poses show, which then stands for its follow (the composition is
+    ruled out unfollowed).
     """
     first = None
     asked: list = []
@@ -154,7 +155,8 @@ def search_executable(
         attempt.cost = dict(problem.cost)
         search = _search_from(attempt, solve, compose, checker, demo_names, start_index,
                               alternatives=alternatives, max_rounds=max_rounds, refused=refused,
-                              path_constraints=path_constraints, repeats=None if repeats is None else repeats())
+                              path_constraints=path_constraints,
+                              pose_blockers=None if pose_blockers is None else pose_blockers())
         if search.steps is None and asked and asked[0]:
             return search  # no other start can help
         if search.steps is not None:
@@ -170,7 +172,7 @@ def search_executable(
 
 
 def _search_from(problem, solve, compose, checker, demo_names, start_index, *, alternatives, max_rounds,
-                 refused=lambda problem: (), path_constraints=(), repeats=None):
+                 refused=lambda problem: (), path_constraints=(), pose_blockers=None):
     """The lazy search with the start fixed to branch ``start_index`` (see
     :func:`search_executable`)."""
     blocked: list[InfeasibleSegment] = []
@@ -187,7 +189,7 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
         def check(current: dict, spans: range | None = None):
             """Composes with the mappings ``current`` and follows it from the start branch
             ``start_index`` (with its windings); None when there is no such branch. A
-            composition ``repeats`` rules out in ``spans`` (all by default) is not
+            composition ``pose_blockers`` rules out in ``spans`` (all by default) is not
             followed: only there does its blocker stand for the follow's (a later span's
             would hide whether the spans before it run)."""
             composed = compose(steps, {i: current[s] for i, s in enumerate(steps) if s in current})
@@ -195,14 +197,14 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
             starts = checker.start_candidates(RigidTransform(matrices_from_dual_quaternion(timed.poses[:1])[0]))
             if len(starts) <= start_index:
                 return composed, None
-            blocker = None if repeats is None else repeats.repeated(timed, spans)
+            blocker = None if pose_blockers is None else pose_blockers.blocker_of(timed, spans)
             if blocker is not None:
                 return composed, JointPath(np.array([blocker.time_s]), np.zeros((0, 6)), blocker, (), math.inf,
                                            math.inf, math.inf, math.inf, start_index=start_index)
             path = checker.follow_from_candidates(timed, starts[start_index:start_index + 1],
                                                   path_constraints=path_constraints)
-            if repeats is not None and not path.executable:
-                repeats.record(timed, path)
+            if pose_blockers is not None and not path.executable:
+                pose_blockers.record(timed, path)
             return composed, dataclasses.replace(path, start_index=start_index)
 
         composed, path = check(overrides)

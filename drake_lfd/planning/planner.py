@@ -30,7 +30,7 @@ from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.executable import InfeasibleSegment, search_executable
 from drake_lfd.planning.problem_size import check_problem_size
 from drake_lfd.planning.options import PLANNERS, PlanningOptions
-from drake_lfd.planning.refusals import RepeatedPanBlockers, blocked_configurations, distinct_reasons
+from drake_lfd.planning.refusals import PoseBlockers, blocked_configurations, distinct_reasons
 from drake_lfd.planning.stretching import solve_within_stretch_bound
 from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.features import Feature
@@ -493,7 +493,7 @@ def plan_composition(
         search = search_executable(problem, solve, compose, checker, names, alternatives=alternatives,
                                    refusal=lambda problem: blocked_configurations(problem, checker),
                                    path_constraints=task.path_constraints,
-                                   repeats=lambda: RepeatedPanBlockers(checker))
+                                   pose_blockers=lambda: PoseBlockers(checker))
         steps, composed, joint_path, blocked, rounds = (
             search.steps, search.composed, search.joint_path, distinct_reasons(search.blocked), search.rounds)
     greedy_completed, fallback = q_outcome.get("greedy_completed"), q_outcome.get("fallback")

@@ -22,7 +22,7 @@ two consecutive configurations' branches, one way round or the other: when both 
 come within the clearance, that span blocks every composition.
 
 What the pre-check cannot prove, the search can still learn cheaply:
-:class:`RepeatedPanBlockers` rules out, without following it, a composition whose poses
+:class:`PoseBlockers` rules out, without following it, a composition whose poses
 turn shoulder_pan through a pan where a follow already measured a pan-only shape too
 close.
 
@@ -54,7 +54,7 @@ from drake_lfd.robot.joint_path import (
 )
 
 __all__ = ["branch_signature", "branch_violation", "blocked_configurations", "distinct_reasons",
-           "RepeatedPanBlockers"]
+           "PoseBlockers"]
 
 
 def branch_violation(checker: JointPathChecker, q: np.ndarray, distance_m: float, robot_geometry: str | None,
@@ -402,7 +402,7 @@ def _closest_blocked_sweep(sweeps: _PanClearance, starts: list[np.ndarray], ends
     return closest
 
 
-class RepeatedPanBlockers:
+class PoseBlockers:
     """Rules out, unfollowed, the compositions whose poses alone show the follow would be
     blocked: turning shoulder_pan through a pan where a pan-only shape is within the
     clearance, or driving the elbow or the wrist deep into its singularity.
@@ -457,7 +457,7 @@ class RepeatedPanBlockers:
         if self._pans_usable:
             self._sweeps = _pan_sweeps(self._checker)
 
-    def repeated(self, plan, spans: range | None = None) -> Blocker | None:
+    def blocker_of(self, plan, spans: range | None = None) -> Blocker | None:
         """The blocker ``plan``'s poses show in the first span (of ``spans``, 0-based; all by
         default) where they show one; else None."""
         if self._branch is None:
