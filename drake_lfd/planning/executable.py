@@ -110,6 +110,7 @@ def search_executable(
     refusal: Callable[[CompositionProblem], list[InfeasibleSegment]] | None = None,
     path_constraints: Sequence = (),
     pose_blockers: Callable[[], object] | None = None,
+    step_poses: Callable[[Step, tuple], tuple] | None = None,
 ) -> ExecutableSearch:
     """Lazy search for an executable composition (see the module docstring).
 
@@ -140,7 +141,10 @@ def search_executable(
     alone (``planning/refusals.PoseBlockers``): its ``record(plan, path)`` learns from
     each blocked follow and its ``blocker_of(plan, spans)`` returns the blocker a
     composition's poses show, which then stands for its follow (the composition is
-    ruled out unfollowed).
+    ruled out unfollowed). With ``step_poses(step, mapping)`` (a step's own mapped poses
+    and the indices of its critical configurations), an alternative mapping whose own
+    poses show a blocker in its spans is passed over before anything is composed: the
+    check of the composed plan would find that blocker there.
     """
     first = None
     asked: list = []
@@ -156,7 +160,8 @@ def search_executable(
         search = _search_from(attempt, solve, compose, checker, demo_names, start_index,
                               alternatives=alternatives, max_rounds=max_rounds, refused=refused,
                               path_constraints=path_constraints,
-                              pose_blockers=None if pose_blockers is None else pose_blockers())
+                              pose_blockers=None if pose_blockers is None else pose_blockers(),
+                              step_poses=step_poses)
         if search.steps is None and asked and asked[0]:
             return search  # no other start can help
         if search.steps is not None:
@@ -172,7 +177,7 @@ def search_executable(
 
 
 def _search_from(problem, solve, compose, checker, demo_names, start_index, *, alternatives, max_rounds,
-                 refused=lambda problem: (), path_constraints=(), pose_blockers=None):
+                 refused=lambda problem: (), path_constraints=(), pose_blockers=None, step_poses=None):
     """The lazy search with the start fixed to branch ``start_index`` (see
     :func:`search_executable`)."""
     blocked: list[InfeasibleSegment] = []
@@ -242,6 +247,9 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
         if alternatives is not None and step not in tried:
             tried.add(step)
             for option in alternatives(step):
+                if (pose_blockers is not None and step_poses is not None
+                        and pose_blockers.blocks_segment(*step_poses(step, option), step.j)):
+                    continue  # its own poses show it blocked in its spans
                 trial = dict(overrides)
                 trial[step] = option
                 composed, path = check(trial, range(step.j, step.k))

@@ -476,6 +476,19 @@ def plan_composition(
         def solve(problem: CompositionProblem):
             return solve_within_stretch_bound(problem, unbounded_solve, correction_of)
 
+    def step_poses(step, option):
+        """``step`` mapped as ``option`` (suffix, twist): its poses and the indices of its
+        critical configurations (compose_plan's mapping, from the same memo)."""
+        first, twist = option
+        key = (step, first, float(twist))
+        if key not in mapped_memo:
+            span, task_poses = span_poses(step, first)
+            mapped, _ = map_span_clear(feature_list[step.demo].poses, span.allocation, task_poses, keep_out, floor_z,
+                                       points_E, twist=twist)
+            mapped_memo[key] = span, mapped
+        mapped = mapped_memo[key][1]
+        return mapped.poses, mapped.anchor_indices
+
     def alternatives(step):
         """Other demo suffixes and twists for ``step``, best first (the default left out)."""
         options = []
@@ -493,7 +506,7 @@ def plan_composition(
         search = search_executable(problem, solve, compose, checker, names, alternatives=alternatives,
                                    refusal=lambda problem: blocked_configurations(problem, checker),
                                    path_constraints=task.path_constraints,
-                                   pose_blockers=lambda: PoseBlockers(checker))
+                                   pose_blockers=lambda: PoseBlockers(checker), step_poses=step_poses)
         steps, composed, joint_path, blocked, rounds = (
             search.steps, search.composed, search.joint_path, distinct_reasons(search.blocked), search.rounds)
     greedy_completed, fallback = q_outcome.get("greedy_completed"), q_outcome.get("fallback")

@@ -462,15 +462,32 @@ class PoseBlockers:
         default) where they show one; else None."""
         if self._branch is None:
             return None
+        due = [int(i) for i in plan.critical_indices]
+        return self._first_blocker(plan.poses, plan.times, due, range(len(due) - 1) if spans is None else spans, 0)
+
+    def blocks_segment(self, poses: np.ndarray, anchors, first_span: int) -> bool:
+        """Whether a step's own mapped poses (``poses`` (n, 8), its critical configurations at
+        ``anchors``, the first of them con ``first_span + 1``) show a blocker: then the
+        step's mapping cannot get the arm past its spans, and need not be composed."""
+        if self._branch is None:
+            return False
+        anchors = [int(a) for a in anchors]
+        return self._first_blocker(np.asarray(poses), np.arange(len(poses), dtype=float), anchors,
+                                   range(len(anchors) - 1), first_span) is not None
+
+    def _first_blocker(self, dual_quaternions, times, due: list[int], spans, first_span: int) -> Blocker | None:
+        """The first blocker the poses (n, 8) at ``times`` show in ``spans`` (windows between
+        the ``due`` indices; reported as spans ``first_span`` on)."""
         root, wrist = self._branch
-        poses = self._tool0_poses(plan)
+        X_WE = matrices_from_dual_quaternion(dual_quaternions)
+        poses = self._X_BW @ X_WE @ self._X_E_tool0
         pans = shoulder_pan_roots(poses)[:, root]
         # Poses the branch cannot reach (NaN) lie past the singularity (said so below).
         elbow, wrist_sine = elbow_and_wrist_sines(poses, root, wrist)
         limits = self._checker.limits
-        due = [int(i) for i in plan.critical_indices]
-        for span in range(len(due) - 1) if spans is None else spans:
-            window = slice(due[span], due[span + 1] + 1)
+        for local in spans:
+            span = first_span + local
+            window = slice(due[local], due[local + 1] + 1)
             for sines, margin, what, joint in ((elbow[window], limits.elbow_margin, "elbow straight", 3),
                                                (wrist_sine[window], limits.wrist_margin, "wrist aligned", 5)):
                 below = np.isnan(sines) | (sines < margin)
@@ -480,9 +497,9 @@ class PoseBlockers:
                     detail = (f"{what}: the poses leave the reach of the arm's branch past it (|sin q{joint}| "
                               f"would pass 0 < {margin:g})" if np.isnan(sines).any() else
                               f"{what} (|sin q{joint}| = {float(np.nanmin(sines)):.3f} < {margin:g})")
-                    return Blocker("singularity", detail, max(float(plan.times[due[span] + k]), 1e-9), span)
+                    return Blocker("singularity", detail, max(float(times[due[local] + k]), 1e-9), span)
             if self._sweeps is not None:
-                blocker = self._pan_blocker(pans[window], plan.times[window], span)
+                blocker = self._pan_blocker(pans[window], times[window], span)
                 if blocker is not None:
                     self.ruled_out += 1
                     return blocker
