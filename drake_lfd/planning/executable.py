@@ -18,6 +18,13 @@ executable, or none is and every forbidden action is reported with its reason. O
 when nothing runs from the preferred start does the search start over from the next
 branch (at most three).
 
+The follow checks the task's path constraints too (a composition turning the tool too
+far is blocked like a collision). Once a follow has been blocked, a composition whose
+poses alone show the follow would be blocked (``refusals.PoseBlockers``: a pan sweep
+through a shape's blocked pan, a singularity on the start's branch) stands blocked
+without being followed, and an alternative mapping whose own poses show it is passed
+over before it is composed.
+
 A span's feasibility depends on the joint state it starts from; forbidding the action
 for every start is the approximation that keeps the search small (an action blocked
 after one prefix may run after another).
@@ -54,9 +61,10 @@ class InfeasibleSegment:
     """A segment of a composition that the robot cannot run, and why.
 
     ``con_from``/``con_to`` are 1-based; ``reason`` one of ``reach``, ``joint_limit``,
-    ``singularity``, ``collision``, ``path_constraint``; ``demo`` the demonstration mapped onto it (empty for a
-    critical configuration out of reach before any composition); ``blocked_alternatives``
-    how many alternatives (actions: demo, span and candidate angles) this reason blocked."""
+    ``singularity``, ``collision``, ``path_constraint``; ``demo`` the demonstration
+    mapped onto it (empty for a critical configuration out of reach before any
+    composition); ``blocked_alternatives`` how many alternatives (actions: demo, span
+    and candidate angles) this reason blocked."""
 
     con_from: int
     con_to: int

@@ -22,9 +22,11 @@ two consecutive configurations' branches, one way round or the other: when both 
 come within the clearance, that span blocks every composition.
 
 What the pre-check cannot prove, the search can still learn cheaply:
-:class:`PoseBlockers` rules out, without following it, a composition whose poses
-turn shoulder_pan through a pan where a follow already measured a pan-only shape too
-close.
+:class:`PoseBlockers` rules out, without following it, a composition whose poses turn
+shoulder_pan through a pan where a pan-only shape is within the clearance, or take the
+start's branch deep into the elbow or wrist singularity. The pan's clearance is decided
+exactly between the grid's pans (:class:`_PanClearance`), so the pre-check, the rule-out
+and the follow agree on a clearance within a hair of the margin.
 
 :func:`distinct_reasons` merges the segments the search did report into one per distinct
 reason, with how many alternatives each blocked.
