@@ -25,7 +25,6 @@ Not for: the people's geometry or motion (``core/people.py``), the simulation.
 import csv
 import dataclasses
 import io
-import math
 from pathlib import Path
 from typing import Optional
 
@@ -37,7 +36,8 @@ from drake_lfd.core.people import (
     Waypoint,
 )
 from drake_lfd.io.yaml_checks import (
-    coordinate, finite, load_spec, non_negative as _non_negative, positive as _positive, read_text, required, vector,
+    coordinate, finite, load_spec, non_negative as _non_negative, positive as _positive, read_text, required,
+    unique_name, vector,
 )
 
 __all__ = ["WaypointSpec", "ReachSpec", "BodySpec", "PersonSpec", "CollaborationSpec", "PeopleFileSpec",
@@ -216,12 +216,7 @@ def people_from_specs(specs, *, file=None) -> tuple:
     people, names = [], {}
     for index, spec in enumerate(specs):
         field = f"people[{index}]"
-        if not spec.name:
-            raise InputError("a person needs a non-empty name", file=file, field=f"{field}.name")
-        if spec.name in names:
-            raise InputError(f"person name {spec.name!r} is used by {names[spec.name]} already",
-                             file=file, field=f"{field}.name")
-        names[spec.name] = field
+        unique_name(spec.name, names, what="person", file=file, field=field)
         if bool(spec.path) == bool(spec.track):
             raise InputError("give exactly one of path: [{t, xy}, ...] or track: FILE.csv", file=file, field=field)
         body = _body(spec.body, file=file, field=f"{field}.body")

@@ -123,6 +123,7 @@ from drake_lfd.io.yaml_checks import (
     pose,
     positive as _positive,
     read_text,
+    unique_name,
     vector,
 )
 
@@ -234,12 +235,7 @@ def _tool(specs, *, file):
     shapes, names = [], {}
     for index, spec in enumerate(specs):
         field = f"tool[{index}]"
-        if not spec.name:
-            raise InputError("a tool shape needs a non-empty name", file=file, field=f"{field}.name")
-        if spec.name in names:
-            raise InputError(f"tool shape name {spec.name!r} is used by {names[spec.name]} already",
-                             file=file, field=f"{field}.name")
-        names[spec.name] = field
+        unique_name(spec.name, names, what="tool shape", file=file, field=field)
         X_tool0_S = pose(spec, file=file, field=field)
         has_cylinder = spec.cylinder.radius != 0.0 or spec.cylinder.length != 0.0
         if bool(spec.box) == has_cylinder:

@@ -53,6 +53,7 @@ __all__ = [
     "MAX_ANGLE_RAD",
     "Scalar",
     "required",
+    "unique_name",
     "PoseSpec",
     "UniqueKeyLoader",
     "yaml_error",
@@ -531,6 +532,16 @@ def positive(value, *, file, field):
     if not number > 0.0:
         raise InputError(f"must be > 0, got {number:g}", file=file, field=field)
     return number
+
+
+def unique_name(name, seen: dict, *, what: str, file, field) -> None:
+    """Checks that ``name`` (of a ``what`` at ``field``, as ``people[0]``) is non-empty and
+    not one of ``seen`` (name -> the field that used it), then records it there."""
+    if not name:
+        raise InputError(f"a {what} needs a non-empty name", file=file, field=f"{field}.name")
+    if name in seen:
+        raise InputError(f"{what} name {name!r} is used by {seen[name]} already", file=file, field=f"{field}.name")
+    seen[name] = field
 
 
 def non_negative(value, *, file, field):

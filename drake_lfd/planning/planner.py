@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import weakref
-from typing import Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 
@@ -270,7 +270,7 @@ def compose_plan(
     points_E: np.ndarray | None = None,
     overrides: Mapping[int, tuple[int | None, float | None]] | None = None,
     per_step: list | None = None,
-    mapped_memo: dict | None = None,
+    mapping: Callable | None = None,
 ) -> tuple[np.ndarray, list[int], np.ndarray, float, float]:
     """Maps each step's demo onto its span (see :func:`map_span_clear`) and joins them.
 
@@ -281,9 +281,9 @@ def compose_plan(
     Returns poses (N, 8), critical indices (n,), chosen euler_zyx (n, 3), the exact
     cost of each step (its allocation's total alpha), and the largest position and
     rotation corrections applied; ``per_step``, when given, receives each step's
-    ``(position_m, rotation_rad)`` corrections. ``mapped_memo``, when given, keeps each
-    step's allocation and mapping by ``(step, first_index, twist)`` for the next call (the search composes
-    the same steps again and again; a mapping depends on nothing else).
+    ``(position_m, rotation_rad)`` corrections. ``mapping(step, first_index, twist)``,
+    when given, returns a step's allocation and mapping in place of computing them (the
+    search keeps them, as it composes the same steps again and again).
     """
     names = list(features)
     n = problem.num_cons
@@ -292,21 +292,18 @@ def compose_plan(
     pieces, critical, costs = [], [0], []
     max_position, max_rotation = 0.0, 0.0
     overrides = overrides or {}
+
+    def map_step(step, first_index, twist):
+        span = problem.span_allocation(step, first_index)
+        task_poses = np.array([problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)])
+        feature = features[names[step.demo]]
+        mapped, _twist = map_span_clear(feature.poses, span.allocation, task_poses, keep_out, floor_z, points_E,
+                                        twist=twist)
+        return span, mapped
+
     for index, step in enumerate(steps):
         first_index, twist = overrides.get(index, (None, None))
-        key = (step, first_index, None if twist is None else float(twist))
-        if mapped_memo is not None and key in mapped_memo:
-            span, mapped = mapped_memo[key]
-        else:
-            span = problem.span_allocation(step, first_index)
-            task_poses = np.array(
-                [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)]
-            )
-            feature = features[names[step.demo]]
-            mapped, _twist = map_span_clear(feature.poses, span.allocation, task_poses, keep_out, floor_z, points_E,
-                                            twist=twist)
-            if mapped_memo is not None:
-                mapped_memo[key] = span, mapped
+        span, mapped = (mapping or map_step)(step, first_index, twist)
         costs.append(span.allocation.cost)
         for offset, candidate in enumerate(span.candidates):
             chosen[step.j + offset] = angles[step.j + offset][candidate]
@@ -430,6 +427,16 @@ def plan_composition(
                 [problem.candidate_poses[step.j + o][c] for o, c in enumerate(span.candidates)])
         return span_memo[key]
 
+    def mapped_step(step, first, twist):
+        """``step``'s allocation from suffix ``first`` and its mapping with ``twist``
+        (memoized: compose, the stretch bound and the search's pose check share them)."""
+        key = (step, first, float(twist))
+        if key not in mapped_memo:
+            span, task_poses = span_poses(step, first)
+            mapped_memo[key] = span, map_span_clear(feature_list[step.demo].poses, span.allocation, task_poses,
+                                                    keep_out, floor_z, points_E, twist=twist)[0]
+        return mapped_memo[key]
+
     def twists_of(step, first, limit):
         """The twist order of ``step`` mapped from suffix ``first`` (memoized: the search
         composes the same steps again and again)."""
@@ -451,7 +458,7 @@ def plan_composition(
                 overrides[index] = (first, twists_of(step, first, 1)[0])
         per_step: list = []
         path, critical, chosen, costs, max_position, max_rotation = compose_plan(
-            problem, steps, features, angles, keep_out, floor_z, points_E, overrides, per_step, mapped_memo)
+            problem, steps, features, angles, keep_out, floor_z, points_E, overrides, per_step, mapped_step)
         timed = time_plan(path, critical, max_speed_m_s=max_speed_m_s,
                           max_angular_speed_rad_s=max_angular_speed_rad_s)
         return timed, chosen, costs, max_position, max_rotation, per_step
@@ -461,13 +468,8 @@ def plan_composition(
     def correction_of(step):
         """The largest position correction of ``step``'s default mapping (memoized)."""
         if step not in correction_memo:
-            twist = float(twists_of(step, None, 1)[0])
-            key = (step, None, twist)  # compose_plan's key for the same mapping
-            if key not in mapped_memo:
-                span, task_poses = span_poses(step, None)
-                mapped, _ = map_span_clear(feature_list[step.demo].poses, span.allocation, task_poses, twist=twist)
-                mapped_memo[key] = span, mapped
-            correction_memo[step] = mapped_memo[key][1].max_correction_position_m
+            _, mapped = mapped_step(step, None, twists_of(step, None, 1)[0])
+            correction_memo[step] = mapped.max_correction_position_m
         return correction_memo[step]
 
     if cost == "fidelity":  # the paper's cost keeps Eq. 31 and its choices as they are
@@ -478,15 +480,8 @@ def plan_composition(
 
     def step_poses(step, option):
         """``step`` mapped as ``option`` (suffix, twist): its poses and the indices of its
-        critical configurations (compose_plan's mapping, from the same memo)."""
-        first, twist = option
-        key = (step, first, float(twist))
-        if key not in mapped_memo:
-            span, task_poses = span_poses(step, first)
-            mapped, _ = map_span_clear(feature_list[step.demo].poses, span.allocation, task_poses, keep_out, floor_z,
-                                       points_E, twist=twist)
-            mapped_memo[key] = span, mapped
-        mapped = mapped_memo[key][1]
+        critical configurations."""
+        _, mapped = mapped_step(step, *option)
         return mapped.poses, mapped.anchor_indices
 
     def alternatives(step):

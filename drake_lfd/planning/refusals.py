@@ -289,6 +289,16 @@ class _PanClearance:
         self._blocked_before = np.concatenate([[0], np.cumsum(np.tile(self.cell_blocked, 2))])
         self._count = count
 
+    def nearest_pair(self, pan: float) -> tuple:
+        """The pan-only shape and the box closest together with shoulder_pan at ``pan``:
+        ``(robot GeometryId, box GeometryId)``."""
+        q = self._q.copy()
+        q[0] = pan
+        distances = self._scene.signed_distances(q)[self._rows]
+        row, box = np.unravel_index(np.argmin(distances), distances.shape)
+        geometry = self._scene.geometry
+        return geometry.robot_geometry_ids[self._rows[row]], geometry.keep_out_geometry_ids[box]
+
     def f(self, pan: float) -> float:
         """The least signed distance of the pan-only rows with shoulder_pan at ``pan``."""
         if pan not in self._measured:
@@ -363,20 +373,15 @@ def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
         return []
     clearance = checker.limits.clearance_m
     sweeps = _pan_sweeps(checker)
-    q = np.zeros(6)
+    names = scene.geometry
     segments = []
     for i in range(problem.num_cons - 1):
         closest = _closest_blocked_sweep(sweeps, good_branches[i], good_branches[i + 1])
         if closest is None:
             continue
         value, pan = closest
-        q_at = q.copy()
-        q_at[0] = pan
-        distances = scene.signed_distances(q_at)[rows]
-        row, box = np.unravel_index(np.argmin(distances), distances.shape)
-        names = scene.geometry
-        robot = names.names[names.robot_geometry_ids[rows[row]]]
-        what = names.describe(names.keep_out_geometry_ids[box])
+        robot_id, box_id = sweeps.nearest_pair(pan)
+        robot, what = names.names[robot_id], names.describe(box_id)
         verb = describe_clearance_shortfall(what, value, clearance)
         segments.append(InfeasibleSegment(
             i + 1, i + 2, "collision",
@@ -431,8 +436,7 @@ class PoseBlockers:
     def __init__(self, checker: JointPathChecker):
         self._checker = checker
         memo = _pan_memo(checker)
-        self._rows = memo["rows"]
-        self._pans_usable = bool(len(self._rows) and np.isfinite(memo["lipschitz"])
+        self._pans_usable = bool(len(memo["rows"]) and np.isfinite(memo["lipschitz"])
                                  and len(checker.scene.geometry.keep_out_geometry_ids))
         kinematics = checker.kinematics
         self._X_BW = kinematics.X_WB.inverse().GetAsMatrix4()
@@ -441,16 +445,16 @@ class PoseBlockers:
         self._branch: tuple[int, int] | None = None  # (shoulder root, wrist sign)
         self.ruled_out = 0
 
-    def _tool0_poses(self, plan) -> np.ndarray:
-        """X_B_tool0 (n, 4, 4) of every pose of ``plan``."""
-        return self._X_BW @ matrices_from_dual_quaternion(plan.poses) @ self._X_E_tool0
+    def _tool0_poses(self, dual_quaternions) -> np.ndarray:
+        """X_B_tool0 (n, 4, 4) of the poses X_WE (n, 8)."""
+        return self._X_BW @ matrices_from_dual_quaternion(dual_quaternions) @ self._X_E_tool0
 
     def record(self, plan, path) -> None:
         """Learns from a blocked follow of ``plan``: wakes, and takes the branch of the
         path's start."""
         if path.executable or not len(path.q) or self._branch is not None:
             return
-        first = shoulder_pan_roots(self._tool0_poses(plan)[:1])[0]
+        first = shoulder_pan_roots(self._tool0_poses(plan.poses[:1]))[0]
         q0 = path.q[0]
         if np.isnan(first).any() or math.sin(q0[4]) == 0.0:
             return
@@ -481,8 +485,7 @@ class PoseBlockers:
         """The first blocker the poses (n, 8) at ``times`` show in ``spans`` (windows between
         the ``due`` indices; reported as spans ``first_span`` on)."""
         root, wrist = self._branch
-        X_WE = matrices_from_dual_quaternion(dual_quaternions)
-        poses = self._X_BW @ X_WE @ self._X_E_tool0
+        poses = self._tool0_poses(dual_quaternions)
         pans = shoulder_pan_roots(poses)[:, root]
         # Poses the branch cannot reach (NaN) lie past the singularity (said so below).
         elbow, wrist_sine = elbow_and_wrist_sines(poses, root, wrist)
@@ -529,13 +532,8 @@ class PoseBlockers:
 
     def _blocker(self, value: float, pan: float, time_s: float, span: int) -> Blocker:
         """The follow's wording for the pan-only shape nearest a box at ``pan``."""
-        scene = self._checker.scene
-        q = np.zeros(6)
-        q[0] = pan
-        distances = scene.signed_distances(q)[self._rows]
-        row, box = np.unravel_index(np.argmin(distances), distances.shape)
-        names = scene.geometry
-        robot_id, box_id = names.robot_geometry_ids[self._rows[row]], names.keep_out_geometry_ids[box]
+        robot_id, box_id = self._sweeps.nearest_pair(pan)
+        names = self._checker.scene.geometry
         what = names.describe(box_id)
         verb = describe_clearance_shortfall(what, value, self._checker.limits.clearance_m)
         return Blocker("collision", f"collision with {what}: {names.names.get(robot_id, robot_id)} {verb}", time_s,
