@@ -220,3 +220,15 @@ def test_compositions_whose_poses_show_the_blocker_are_ruled_out_unfollowed(seed
     assert result.status == plain.status == "no_executable_plan"
     assert follows < plain_follows / 2
     assert any(blocker in s.detail for s in result.infeasible)
+
+
+def test_a_blocker_no_choice_changes_is_refused_before_the_alternatives_are_followed():
+    """Near-base task 17: con_4 enters the shell on every inverse-kinematics branch. The
+    first composition's follow meets it; the pre-check is asked then, before the step's
+    alternatives are followed one by one (it used to be asked only after them: six
+    follows for the same refusal)."""
+    result, follows = _plan_near_base(17)
+    assert result.status == "no_executable_plan" and result.search_rounds == 1
+    (segment,) = result.infeasible
+    assert segment.con_to == 4 and "on every inverse-kinematics branch" in segment.detail
+    assert follows == 1

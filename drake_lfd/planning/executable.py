@@ -134,12 +134,13 @@ def search_executable(
     start may run from another). The blocked segments reported are the first start's.
 
     ``refusal(problem)`` (``planning/refusals.py``) is asked once, when the search is
-    first about to forbid something (a blocked step whose alternatives all failed, or
+    first about to try a blocked step's alternatives or to forbid something (a step or
     a start): the segments it returns block every composition whatever is chosen, and
-    the search stops with them at once. Asked then rather than at the first blocked
-    composition, it costs nothing when an alternative mapping gets the arm past the
-    block (the common case on the paper's tasks), and sees the problem as it was then
-    (alternatives forbid nothing), so its segments are the same.
+    the search stops with them at once. Asked then rather than before the first
+    follow, it costs nothing on a composition that runs at once (the common case);
+    asked before the alternatives are followed one by one, a refusal no choice can
+    change is not delayed by them. Alternatives forbid nothing, so the problem it sees
+    is the one it would see after them, and its segments are the same.
 
     ``path_constraints`` (the task's) are checked on every follow: a composition that
     turns the tool beyond one is blocked like a collision, and the search tries the
@@ -251,6 +252,13 @@ def _search_from(problem, solve, compose, checker, demo_names, start_index, *, a
                                              demo_names[step.demo]))
             problem.forbid_state(steps[0].j, steps[0].a_j)
             continue
+        if alternatives is not None and step not in tried:
+            # Before the alternatives are followed one by one: a blocker no choice can
+            # change refuses the task now (the alternatives forbid nothing, so the
+            # answer is the one the search would get after them).
+            refusal = refused(problem)
+            if refusal:
+                return ExecutableSearch(None, None, None, refusal, rounds, tried_a_start)
         passed = False
         if alternatives is not None and step not in tried:
             tried.add(step)

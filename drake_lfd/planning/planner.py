@@ -14,7 +14,6 @@ Not for: reading files (``tasks.py``, ``library.py``) or running the robot.
 from __future__ import annotations
 
 import dataclasses
-import weakref
 from typing import Callable, Mapping
 
 import numpy as np
@@ -237,11 +236,6 @@ def twist_order(feature_poses, allocation, task_poses, keep_out=(), floor_z=None
     return twists if limit is None else twists[:limit]
 
 
-# Twist orders by their exact inputs, per joint-path checker (one per scene, kept across
-# trials as the check's own reuse is): trials of a task whose spans do not depend on its
-# variables (filling and pouring's first two) order their twists once.
-_TWIST_ORDERS: "weakref.WeakKeyDictionary[JointPathChecker, ExactMemo]" = weakref.WeakKeyDictionary()
-
 
 def _clearance_scene_key(keep_out, floor_z) -> tuple:
     """What :func:`twist_order` reads of the boxes and the floor, exactly."""
@@ -410,9 +404,10 @@ def plan_composition(
 
     feature_list = list(features.values())
     scene_key = _clearance_scene_key(keep_out, floor_z)
-    # With a checker (built once per scene), the twist orders of earlier plans in it.
-    scene_twists = ExactMemo(maxsize=1) if checker is None else _TWIST_ORDERS.setdefault(
-        checker, ExactMemo(maxsize=256))
+    # With a checker (built once per scene), the twist orders of earlier plans in it by
+    # their exact inputs: trials of a task whose spans do not depend on its variables
+    # (filling and pouring's first two) order their twists once.
+    scene_twists = ExactMemo(maxsize=1) if checker is None else checker.twist_orders
     span_memo: dict = {}
     twist_memo: dict = {}
     mapped_memo: dict = {}

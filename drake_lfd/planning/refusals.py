@@ -40,7 +40,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
-import weakref
 from collections.abc import Sequence
 
 import numpy as np
@@ -210,15 +209,10 @@ def _pan_only_rows(checker: JointPathChecker) -> np.ndarray:
     return np.flatnonzero(same)
 
 
-# Per checker: its pan-only rows and the pan tables computed (by the exact configuration
-# whose pan turns), which trials of a task with a fixed con_1 share.
-_PAN_MEMOS: "weakref.WeakKeyDictionary[JointPathChecker, dict]" = weakref.WeakKeyDictionary()
-
-
 def _pan_memo(checker: JointPathChecker) -> dict:
     """The checker's pan-only rows, their Lipschitz constant in shoulder_pan (the largest
     distance of their points from the pan axis) and its pan sweep (:func:`_pan_sweeps`)."""
-    memo = _PAN_MEMOS.setdefault(checker, {})
+    memo = checker.pan_memo  # the trials of a task share its checker
     if "rows" not in memo:
         scene = checker.scene
         rows = _pan_only_rows(checker)

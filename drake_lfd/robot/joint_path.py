@@ -344,6 +344,12 @@ class JointPathChecker:
         self._branches = ExactMemo(maxsize=_REMEMBERED_POSES)
         # The last follows from each start, newest first; the starts least recently used first.
         self._follows: OrderedDict[bytes, list[_FollowRecord]] = OrderedDict()
+        # Answers the planning layer derives from this scene alone, kept with the checker
+        # (built once per scene) so that later plans in it reuse them: the planner's twist
+        # orders (planning/planner.py) and the refusals' pan-only rows and sweep
+        # (planning/refusals.py).
+        self.twist_orders = ExactMemo(maxsize=256)
+        self.pan_memo: dict = {}
         plant = scene.plant
         self.law = DifferentialIKLaw(
             plant=plant, model=scene.model, frame_E=plant.GetFrameByName(END_EFFECTOR_FRAME_NAME),
