@@ -47,11 +47,8 @@ import time
 
 import numpy as np
 
-from drake_lfd.core.dual_quaternion import (
-    dual_quaternion_from_translation_rotation,
-    dual_quaternion_multiply,
-    quaternion_from_axis_angle,
-)
+from drake_lfd.core.dual_quaternion import dual_quaternion_from_translation_rotation, dual_quaternion_multiply
+from drake_lfd.core.quaternion import quaternion_from_axis_angle
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
 from drake_lfd.core.similarity import Tolerances

@@ -13,7 +13,7 @@ import timeit
 
 import numpy as np
 
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_euler_zyx
+from drake_lfd.core.pose_conversions import dual_quaternion_from_euler_zyx
 from drake_lfd.core.features import Feature, task_feature_from_poses
 from drake_lfd.core.similarity import Tolerances, allocate_features
 

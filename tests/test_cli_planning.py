@@ -10,10 +10,8 @@ from drake_lfd.core.demonstrations import Demonstration
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.io.library import Library
 from drake_lfd.planning.random_tasks import _euler_zyx_of
-from drake_lfd.core.dual_quaternion import (
-    dual_quaternion_from_matrices,
-    translation_rotation_from_dual_quaternion,
-)
+from drake_lfd.core.dual_quaternion import translation_rotation_from_dual_quaternion
+from drake_lfd.core.pose_conversions import dual_quaternion_from_matrices
 
 Q_HOME = np.array([0.3, -1.3, 1.7, -1.97, -np.pi / 2, 0.2])
 # Joint-space demonstrations: wrist_3 turns the tool about its own z axis (a screw);

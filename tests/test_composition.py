@@ -15,12 +15,9 @@ from pydrake.math import RotationMatrix
 
 import drake_lfd.planning.composition as mut
 from drake_lfd.core import similarity
-from drake_lfd.core.dual_quaternion import (
-    dual_quaternion_from_euler_zyx,
-    dual_quaternion_from_translation_rotation,
-    dual_quaternion_multiply,
-    quaternion_from_axis_angle,
-)
+from drake_lfd.core.dual_quaternion import dual_quaternion_from_translation_rotation, dual_quaternion_multiply
+from drake_lfd.core.pose_conversions import dual_quaternion_from_euler_zyx
+from drake_lfd.core.quaternion import quaternion_from_axis_angle
 from drake_lfd.core.features import Feature
 from drake_lfd.core.synthetic_library import PAPER5, synthetic_features
 

@@ -276,7 +276,7 @@ def test_poses_and_dual_quaternions_by_forward_kinematics():
         np.testing.assert_allclose(X[k], kinematics.X_WE(q[k]).GetAsMatrix4(), atol=1e-15)
     D = dual_quaternions_from_demonstration(demo, kinematics)
     assert D.shape == (4, 8)
-    from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
+    from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
 
     np.testing.assert_allclose(matrices_from_dual_quaternion(D), X, atol=1e-12)
 

@@ -6,7 +6,7 @@ from pydrake.common.eigen_geometry import AngleAxis, Quaternion
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
+from drake_lfd.core.pose_conversions import dual_quaternion_from_matrices
 from drake_lfd.core.timing import TimedPlan
 from drake_lfd.robot.differential_ik_law import pose_error
 from drake_lfd.robot.dh_kinematics import DHArm, rotation_error, rotation_matrices

@@ -192,12 +192,8 @@ def test_a_task_needing_the_wrist_3_winding_of_the_whole_plan_succeeds_in_closed
     rad), and the closed loop, started there, succeeds."""
     from pydrake.math import RigidTransform, RollPitchYaw
 
-    from drake_lfd.core.dual_quaternion import (
-        dual_quaternion_from_euler_zyx,
-        dual_quaternion_multiply,
-        dual_quaternion_relative,
-        matrices_from_dual_quaternion,
-    )
+    from drake_lfd.core.dual_quaternion import dual_quaternion_multiply, dual_quaternion_relative
+    from drake_lfd.core.pose_conversions import dual_quaternion_from_euler_zyx, matrices_from_dual_quaternion
     from drake_lfd.core.tasks import ConcreteTask
     from drake_lfd.diagrams.closed_loop import ClosedLoopRunner
     from drake_lfd.diagrams.pipeline import build_pipeline

@@ -6,14 +6,13 @@ from pydrake.math import RigidTransform, RollPitchYaw
 
 import drake_lfd.core.features as mut
 from drake_lfd.core.dual_quaternion import (
-    axis_angle_from_quaternion,
     dual_quaternion_canonical,
-    dual_quaternion_from_euler_zyx,
-    dual_quaternion_from_rigid_transform,
     dual_quaternion_multiply,
     dual_quaternion_relative,
     translation_from_dual_quaternion,
 )
+from drake_lfd.core.pose_conversions import dual_quaternion_from_euler_zyx, dual_quaternion_from_rigid_transform
+from drake_lfd.core.quaternion import axis_angle_from_quaternion
 from drake_lfd.core.similarity import Tolerances, allocate_features
 
 TOL = 1e-12

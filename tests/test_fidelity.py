@@ -11,11 +11,8 @@ import numpy as np
 import pytest
 
 from cli_subprocess import run_cli
-from drake_lfd.core.dual_quaternion import (
-    dual_quaternion_relative,
-    matrices_from_dual_quaternion,
-    translation_from_dual_quaternion,
-)
+from drake_lfd.core.dual_quaternion import dual_quaternion_relative, translation_from_dual_quaternion
+from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
 from drake_lfd.core.features import Feature, deltas_from_poses
 from drake_lfd.core.fidelity import FidelityWeights, action_pair_costs, feature_excursions, suffix_excursions
 from drake_lfd.core.mapping import map_segment

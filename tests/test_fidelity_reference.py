@@ -15,12 +15,8 @@ import numpy as np
 import pytest
 
 from drake_lfd.core import fidelity
-from drake_lfd.core.dual_quaternion import (
-    IDENTITY_DUAL_QUATERNION,
-    quaternion_conjugate,
-    translation_from_dual_quaternion,
-    vector_rotated_by_quaternion,
-)
+from drake_lfd.core.dual_quaternion import IDENTITY_DUAL_QUATERNION, translation_from_dual_quaternion
+from drake_lfd.core.quaternion import quaternion_conjugate, vector_rotated_by_quaternion
 from drake_lfd.core.features import poses_from_deltas
 from drake_lfd.core.similarity import Tolerances, alpha_beta_matrices, pair_costs, similar_pair_costs
 from drake_lfd.core.synthetic_library import PAPER6, random_features, synthetic_features

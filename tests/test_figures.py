@@ -6,7 +6,7 @@ import pytest
 from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_euler_zyx
+from drake_lfd.core.pose_conversions import dual_quaternion_from_euler_zyx
 from drake_lfd.core.tasks import Box
 from drake_lfd.experiments.figures import (
     JOINT_LABELS,

@@ -9,7 +9,7 @@ import pytest
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
+from drake_lfd.core.pose_conversions import dual_quaternion_from_matrices
 from drake_lfd.core.tasks import Box
 from drake_lfd.core.timing import time_plan
 from drake_lfd.robot.joint_path import JointPathChecker, shoulder_singularity_distance, ur5e_reach_m

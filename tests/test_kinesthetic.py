@@ -22,11 +22,9 @@ from drake_lfd.systems.virtual_hand import VirtualHand, VirtualHandGains
 from drake_lfd.systems.demo_recorder import DemoRecorder
 from drake_lfd.robot.kinematics import dual_quaternions_from_demonstration
 from drake_lfd.io.demonstration_logs import read_rtde_csv
-from drake_lfd.core.dual_quaternion import (
-    axis_angle_from_quaternion,
-    dual_quaternion_from_rigid_transform,
-    dual_quaternion_relative,
-)
+from drake_lfd.core.dual_quaternion import dual_quaternion_relative
+from drake_lfd.core.pose_conversions import dual_quaternion_from_rigid_transform
+from drake_lfd.core.quaternion import axis_angle_from_quaternion
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.features import Feature
 from drake_lfd.robot.kinematics import UR5eKinematics

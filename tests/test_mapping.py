@@ -5,14 +5,16 @@ import pytest
 
 import drake_lfd.core.mapping as mut
 from drake_lfd.core.dual_quaternion import (
-    axis_angle_from_quaternion,
     dual_quaternion_canonical,
-    dual_quaternion_from_euler_zyx,
     dual_quaternion_from_translation_rotation,
     dual_quaternion_multiply,
     dual_quaternion_relative,
-    quaternion_from_axis_angle,
     translation_from_dual_quaternion,
+)
+from drake_lfd.core.pose_conversions import dual_quaternion_from_euler_zyx
+from drake_lfd.core.quaternion import (
+    axis_angle_from_quaternion,
+    quaternion_from_axis_angle,
     vector_rotated_by_quaternion,
 )
 from drake_lfd.core.features import Feature, task_feature_from_poses

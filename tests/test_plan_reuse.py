@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
+from drake_lfd.core.pose_conversions import dual_quaternion_from_matrices
 from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.core.tasks import Box, draw_trial

@@ -5,15 +5,15 @@ import pytest
 
 import drake_lfd.planning.planner as mut
 from drake_lfd.core.dual_quaternion import (
-    dual_quaternion_from_euler_zyx,
     dual_quaternion_from_translation_rotation,
     dual_quaternion_multiply,
     dual_quaternion_relative,
-    quaternion_from_axis_angle,
     rotation_from_dual_quaternion,
     translation_from_dual_quaternion,
     translation_rotation_from_dual_quaternion,
 )
+from drake_lfd.core.pose_conversions import dual_quaternion_from_euler_zyx
+from drake_lfd.core.quaternion import quaternion_from_axis_angle
 from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.q_learning import QPolicy, greedy_walk, plan_q

@@ -11,13 +11,9 @@ import pytest
 
 import drake_lfd.core.similarity as mut
 from drake_lfd.core.synthetic_library import PAPER5, synthetic_features
-from drake_lfd.core.dual_quaternion import (
-    dual_quaternion_from_euler_zyx,
-    dual_quaternion_from_translation_rotation,
-    dual_quaternion_multiply,
-    quaternion_from_axis_angle,
-    quaternion_multiply,
-)
+from drake_lfd.core.dual_quaternion import dual_quaternion_from_translation_rotation, dual_quaternion_multiply
+from drake_lfd.core.pose_conversions import dual_quaternion_from_euler_zyx
+from drake_lfd.core.quaternion import quaternion_from_axis_angle, quaternion_multiply
 from drake_lfd.core.features import task_feature_from_poses
 
 X_AXIS, Y_AXIS, Z_AXIS = np.eye(3)

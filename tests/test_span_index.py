@@ -17,9 +17,9 @@ from drake_lfd.core.dual_quaternion import (
     dual_quaternion_from_translation_rotation,
     dual_quaternion_multiply,
     dual_quaternion_relative,
-    quaternion_from_axis_angle,
     translation_from_dual_quaternion,
 )
+from drake_lfd.core.quaternion import quaternion_from_axis_angle
 from drake_lfd.core.fidelity import action_pair_costs, feature_excursions
 from drake_lfd.core.similarity import Tolerances, allocation_step
 from drake_lfd.core.synthetic_library import PAPER6, random_features, synthetic_features

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 import drake_lfd.core.timing as mut
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_euler_zyx, translation_from_dual_quaternion
+from drake_lfd.core.dual_quaternion import translation_from_dual_quaternion
+from drake_lfd.core.pose_conversions import dual_quaternion_from_euler_zyx
 
 
 def straight_plan(num=41):

@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_lfd.core.dual_quaternion import axis_angle_from_quaternion
+from drake_lfd.core.quaternion import axis_angle_from_quaternion
 from drake_lfd.core.errors import EXIT_BAD_INPUT, EXIT_OK, InputError
 from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
 from drake_lfd.cli.argument_checks import prepare_output

@@ -7,8 +7,14 @@ the paper's baseline (``timing``).
 
 The modules:
 
-* ``dual_quaternion``: dual quaternions for rigid poses (Eq. 1-9), products,
-  conversions, screw interpolation.
+* ``dual_quaternion``: unit dual quaternions for rigid poses (Eq. 1-9): the
+  conventions, input checks, products, translation and rotation parts.
+* ``quaternion``: unit quaternions for rotations: products, axis-angle, rotation
+  vectors and matrices.
+* ``pose_conversions``: dual quaternions to and from Drake's ``RigidTransform``, 4x4
+  matrices and Euler angles.
+* ``screw_motion``: the logarithm and exponential of dual quaternions and screw
+  interpolation (ScLERP).
 * ``features``: features of demonstrations and task segments (Eq. 12-18), arc-length
   resampling.
 * ``similarity``: the similarity test of a segment and a demonstration (Eq. 19-21), the

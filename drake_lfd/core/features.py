@@ -28,10 +28,9 @@ from drake_lfd.core.dual_quaternion import (
     dual_quaternion_conjugate,
     dual_quaternion_multiply,
     dual_quaternion_relative,
-    dual_quaternion_sclerp,
-    exponential_coordinates_from_dual_quaternion,
     translation_from_dual_quaternion,
 )
+from drake_lfd.core.screw_motion import dual_quaternion_sclerp, exponential_coordinates_from_dual_quaternion
 from drake_lfd.core.read_only_arrays import read_only_array
 
 __all__ = [

@@ -28,16 +28,17 @@ from pydrake.math import RigidTransform
 
 from drake_lfd.core.demonstrations import RTDE_RATE_HZ
 from drake_lfd.core.dual_quaternion import (
-    dual_quaternion_from_rigid_transform,
     dual_quaternion_from_translation_rotation,
-    dual_quaternion_sclerp,
-    matrices_from_dual_quaternion,
+    translation_rotation_from_dual_quaternion,
+)
+from drake_lfd.core.pose_conversions import dual_quaternion_from_rigid_transform, matrices_from_dual_quaternion
+from drake_lfd.core.quaternion import (
     quaternion_conjugate,
     quaternion_from_rotation_vector,
     quaternion_multiply,
     rotation_vector_from_quaternion,
-    translation_rotation_from_dual_quaternion,
 )
+from drake_lfd.core.screw_motion import dual_quaternion_sclerp
 
 __all__ = [
     "KINESTHETIC_TIME_STEP_S",

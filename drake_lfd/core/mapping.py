@@ -54,18 +54,20 @@ from numpy.typing import ArrayLike, NDArray
 
 from drake_lfd.core.dual_quaternion import (
     IDENTITY_DUAL_QUATERNION,
-    axis_angle_from_quaternion,
     check_unit_dual_quaternions,
     check_unit_quaternions,
     dual_quaternion_from_translation_rotation,
     dual_quaternion_multiply,
     dual_quaternion_relative,
-    dual_quaternion_sclerp,
+    translation_from_dual_quaternion,
+)
+from drake_lfd.core.quaternion import (
+    axis_angle_from_quaternion,
     quaternion_from_axis_angle,
     quaternion_multiply,
-    translation_from_dual_quaternion,
     vector_rotated_by_quaternion,
 )
+from drake_lfd.core.screw_motion import dual_quaternion_sclerp
 # The features' unchecked kernels (Eq. 12 and its inverse): map_segment has checked.
 from drake_lfd.core.features import _deltas_from_poses, _poses_from_deltas
 from drake_lfd.core.similarity import MIN_TRANSLATION_M

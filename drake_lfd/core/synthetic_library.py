@@ -27,12 +27,9 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from drake_lfd.core.dual_quaternion import (
-    dual_quaternion_from_euler_zyx,
-    dual_quaternion_from_translation_rotation,
-    dual_quaternion_multiply,
-    quaternion_from_axis_angle,
-)
+from drake_lfd.core.dual_quaternion import dual_quaternion_from_translation_rotation, dual_quaternion_multiply
+from drake_lfd.core.pose_conversions import dual_quaternion_from_euler_zyx
+from drake_lfd.core.quaternion import quaternion_from_axis_angle
 from drake_lfd.core.features import Feature
 
 __all__ = [

@@ -38,14 +38,12 @@ from pydrake.math import RigidTransform
 from pydrake.trajectories import PiecewisePose
 
 from drake_lfd.core.dual_quaternion import (
-    axis_angle_from_quaternion,
     check_unit_dual_quaternions,
-    matrices_from_dual_quaternion,
-    quaternion_conjugate,
-    quaternion_multiply,
     rotation_from_dual_quaternion,
     translation_from_dual_quaternion,
 )
+from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
+from drake_lfd.core.quaternion import axis_angle_from_quaternion, quaternion_conjugate, quaternion_multiply
 
 __all__ = [
     "TimingLimits",

@@ -35,7 +35,8 @@ from pydrake.geometry import Meshcat
 from pydrake.math import RigidTransform
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_rigid_transform, dual_quaternion_sclerp
+from drake_lfd.core.pose_conversions import dual_quaternion_from_rigid_transform
+from drake_lfd.core.screw_motion import dual_quaternion_sclerp
 from drake_lfd.core.tasks import ConcreteTask
 from drake_lfd.core.timing import TimedPlan, time_plan
 from drake_lfd.io.simulation_config import PipelineConfig

@@ -51,12 +51,9 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer
 
 from drake_lfd.core.demonstrations import Demonstration
-from drake_lfd.core.dual_quaternion import (
-    axis_angle_from_quaternion,
-    dual_quaternion_from_matrices,
-    dual_quaternion_relative,
-    matrices_from_dual_quaternion,
-)
+from drake_lfd.core.dual_quaternion import dual_quaternion_relative
+from drake_lfd.core.pose_conversions import dual_quaternion_from_matrices, matrices_from_dual_quaternion
+from drake_lfd.core.quaternion import axis_angle_from_quaternion
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.guidance import KINESTHETIC_TIME_STEP_S, GuidancePath, GuidanceScript
 from drake_lfd.robot.initial_ik import UnreachableConfigurationError, solve_initial_configuration

@@ -39,10 +39,10 @@ from drake_lfd.core.dual_quaternion import (
     dual_quaternion_from_translation_rotation,
     dual_quaternion_multiply,
     dual_quaternion_relative,
-    dual_quaternion_sclerp,
     translation_from_dual_quaternion,
     translation_rotation_from_dual_quaternion,
 )
+from drake_lfd.core.screw_motion import dual_quaternion_sclerp
 from drake_lfd.core.features import Feature
 from drake_lfd.core.tasks import ConcreteTask
 from drake_lfd.planning.options import PlanningOptions

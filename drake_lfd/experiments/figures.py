@@ -113,7 +113,7 @@ def draw_plan(poses, critical_indices, *, obstacles=(), safety_shells=(), triad_
     red, safety shells purple (each box turned by its ``rotation``). The legend names
     each one drawn.
     """
-    from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
+    from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
 
     colours = PLAN_COLOURS
     T = matrices_from_dual_quaternion(np.asarray(poses))

@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from drake_lfd.core.dual_quaternion import (
+from drake_lfd.core.quaternion import (
     axis_angle_from_quaternion,
     quaternion_conjugate,
     quaternion_multiply,

@@ -45,6 +45,9 @@ import numpy as np
 
 from drake_lfd.core import dual_quaternion as _dual_quaternion_module
 from drake_lfd.core import features as _features_module
+from drake_lfd.core import pose_conversions as _pose_conversions_module
+from drake_lfd.core import quaternion as _quaternion_module
+from drake_lfd.core import screw_motion as _screw_motion_module
 from drake_lfd.core.features import Feature
 from drake_lfd.core.resources import models_directory
 from drake_lfd.robot import kinematics as _kinematics_module
@@ -146,6 +149,9 @@ def code_fingerprint() -> str:
     for path in (
         Path(_features_module.__file__),
         Path(_dual_quaternion_module.__file__),
+        Path(_quaternion_module.__file__),
+        Path(_pose_conversions_module.__file__),
+        Path(_screw_motion_module.__file__),
         Path(_kinematics_module.__file__),
         models_directory() / "ur5e" / "ur5e.urdf",
     ):

@@ -237,7 +237,8 @@ def request_guidance_yaml(task, segment, *, duration_s: float = 3.0, path=None) 
     import numpy as np
     from pydrake.math import RigidTransform, RollPitchYaw
 
-    from drake_lfd.core.dual_quaternion import dual_quaternion_sclerp, matrices_from_dual_quaternion
+    from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
+    from drake_lfd.core.screw_motion import dual_quaternion_sclerp
 
     def euler(X):
         rpy = RollPitchYaw(X.rotation())

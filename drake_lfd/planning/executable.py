@@ -43,7 +43,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from pydrake.math import RigidTransform
 
-from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion
+from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
 from drake_lfd.planning.composition import CompositionProblem, Step
 from drake_lfd.robot.joint_path import Blocker, JointPath, JointPathChecker
 

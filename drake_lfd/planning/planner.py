@@ -19,12 +19,9 @@ from typing import Callable, Mapping
 import numpy as np
 
 from drake_lfd.planning.composition import CompositionProblem, Step
-from drake_lfd.core.dual_quaternion import (
-    axis_angle_from_quaternion,
-    dual_quaternion_from_euler_zyx,
-    dual_quaternion_relative,
-    translation_from_dual_quaternion,
-)
+from drake_lfd.core.dual_quaternion import dual_quaternion_relative, translation_from_dual_quaternion
+from drake_lfd.core.pose_conversions import dual_quaternion_from_euler_zyx
+from drake_lfd.core.quaternion import axis_angle_from_quaternion
 from drake_lfd.planning.exact_planner import plan_exact
 from drake_lfd.planning.executable import InfeasibleSegment, search_executable
 from drake_lfd.planning.problem_size import check_problem_size

@@ -21,9 +21,9 @@ from drake_lfd.core.dual_quaternion import (
     dual_quaternion_from_translation_rotation,
     dual_quaternion_multiply,
     dual_quaternion_relative,
-    quaternion_from_axis_angle,
     translation_rotation_from_dual_quaternion,
 )
+from drake_lfd.core.quaternion import quaternion_from_axis_angle
 from drake_lfd.core.features import Feature
 from drake_lfd.core.tasks import ConcreteTask
 

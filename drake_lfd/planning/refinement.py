@@ -51,7 +51,7 @@ import numpy as np
 from pydrake.math import BsplineBasis, RotationMatrix
 from pydrake.trajectories import BsplineTrajectory, PiecewisePose
 
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
+from drake_lfd.core.pose_conversions import dual_quaternion_from_matrices
 from drake_lfd.core.tasks import (
     DEFAULT_REFINEMENT_POSITION_M,
     DEFAULT_REFINEMENT_ROTATION_RAD,

@@ -45,7 +45,8 @@ from collections.abc import Sequence
 import numpy as np
 from pydrake.math import RigidTransform
 
-from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion, translation_from_dual_quaternion
+from drake_lfd.core.dual_quaternion import translation_from_dual_quaternion
+from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
 from drake_lfd.planning.composition import CompositionProblem
 from drake_lfd.planning.executable import InfeasibleSegment
 from drake_lfd.robot.analytic_ik import elbow_and_wrist_sines, shoulder_pan_roots

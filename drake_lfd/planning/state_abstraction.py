@@ -31,7 +31,8 @@ import itertools
 import numpy as np
 
 from drake_lfd.planning.composition import CompositionProblem
-from drake_lfd.core.dual_quaternion import dual_quaternion_relative, quaternion_from_rotation_matrices
+from drake_lfd.core.dual_quaternion import dual_quaternion_relative
+from drake_lfd.core.quaternion import quaternion_from_rotation_matrices
 
 __all__ = ["GOAL_KEY", "MAX_REMAINING", "CUBE_ROTATIONS", "motion_key", "state_key"]
 

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_lfd.core.dual_quaternion import matrices_from_dual_quaternion, translation_from_dual_quaternion
+from drake_lfd.core.dual_quaternion import translation_from_dual_quaternion
+from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
 from drake_lfd.core.tasks import Box
 from drake_lfd.robot.analytic_ik import UR5E_DH_D
 

@@ -64,14 +64,13 @@ from collections.abc import Sequence
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 
-from drake_lfd.core.dual_quaternion import (
-    matrices_from_dual_quaternion,
+from drake_lfd.core.dual_quaternion import rotation_from_dual_quaternion, translation_from_dual_quaternion
+from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
+from drake_lfd.core.quaternion import (
     quaternion_conjugate,
     quaternion_from_rotation_vector,
     quaternion_multiply,
-    rotation_from_dual_quaternion,
     rotation_vector_from_quaternion,
-    translation_from_dual_quaternion,
 )
 from drake_lfd.core.exact_memo import ExactMemo
 from drake_lfd.core.timing import TimedPlan

@@ -25,7 +25,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import FixedOffsetFrame, ModelInstanceIndex
 
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
+from drake_lfd.core.pose_conversions import dual_quaternion_from_matrices
 from drake_lfd.core.network_policy import NETWORK_VARIABLE, drake_allows
 from drake_lfd.core.resources import models_directory
 from drake_lfd.robot.dh_kinematics import DHArm

@@ -51,7 +51,7 @@ import numpy as np
 from pydrake.multibody.optimization import CalcGridPointsOptions, Toppra
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_lfd.core.dual_quaternion import dual_quaternion_from_matrices
+from drake_lfd.core.pose_conversions import dual_quaternion_from_matrices
 from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.timing import TimedPlan, TimingLimits
 from drake_lfd.robot.joint_path import JointPath
