@@ -49,6 +49,14 @@ def test_quaternion_multiply_matches_drake():
     np.testing.assert_allclose(quaternions.quaternion_conjugate(a[0]), a[0] * [1, -1, -1, -1])
 
 
+@pytest.mark.parametrize("shape_u, shape_v", [((3,), (3,)), ((40, 3), (40, 3)), ((3,), (7, 3)), ((2, 1, 3), (5, 3))])
+def test_cross_gives_numpys_numbers_in_every_broadcast(shape_u, shape_v):
+    """The kernels' cross product is ``np.cross`` to the last bit (plans stay the same)."""
+    rng = np.random.default_rng(7)
+    u, v = rng.normal(size=shape_u), rng.normal(size=shape_v)
+    assert np.array_equal(quaternions.cross(u, v), np.cross(u, v))
+
+
 def test_composition_inverse_and_conversions_match_rigid_transform():
     rng = np.random.default_rng(1)
     transforms = random_transforms(rng, 10)

@@ -23,7 +23,7 @@ from drake_lfd.core.dual_quaternion import (
     dual_quaternion_relative,
     translation_rotation_from_dual_quaternion,
 )
-from drake_lfd.core.quaternion import quaternion_from_rotation_vector, rotation_vector_from_quaternion
+from drake_lfd.core.quaternion import cross, quaternion_from_rotation_vector, rotation_vector_from_quaternion
 
 __all__ = [
     "exponential_coordinates_from_dual_quaternion",
@@ -68,8 +68,8 @@ def exponential_coordinates_from_dual_quaternion(D: ArrayLike) -> NDArray[np.flo
     p, r = translation_rotation_from_dual_quaternion(D)
     omega = rotation_vector_from_quaternion(r)
     _, _, c = _exponential_coefficients(np.linalg.norm(omega, axis=-1))
-    wp = np.cross(omega, p)
-    v = p - 0.5 * wp + c[..., None] * np.cross(omega, wp)
+    wp = cross(omega, p)
+    v = p - 0.5 * wp + c[..., None] * cross(omega, wp)
     return np.concatenate([omega, v], axis=-1)
 
 
@@ -88,8 +88,8 @@ def dual_quaternion_from_exponential_coordinates(xi: ArrayLike) -> NDArray[np.fl
     xi = np.asarray(xi, dtype=float)
     omega, v = xi[..., :3], xi[..., 3:]
     a, b, _ = _exponential_coefficients(np.linalg.norm(omega, axis=-1))
-    wv = np.cross(omega, v)
-    p = v + a[..., None] * wv + b[..., None] * np.cross(omega, wv)
+    wv = cross(omega, v)
+    p = v + a[..., None] * wv + b[..., None] * cross(omega, wv)
     return dual_quaternion_from_translation_rotation(p, quaternion_from_rotation_vector(omega))
 
 
