@@ -5,7 +5,7 @@ keep too; the scene's memory of solved programs (the same bits as a fresh solve)
 import numpy as np
 import pytest
 
-from drake_lfd.robot.joint_path import shoulder_singularity_distance
+from drake_lfd.robot.dh_kinematics import shoulder_singularity_distance
 from drake_lfd.robot.trajectory_optimization import (
     SHOULDER_FRAME_NAME,
     WRIST_CENTRE_FRAME_NAME,

@@ -72,7 +72,7 @@ from pydrake.trajectories import BsplineTrajectory
 
 from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.timing import TimingLimits
-from drake_lfd.robot.joint_path import shoulder_singularity_distance
+from drake_lfd.robot.dh_kinematics import shoulder_singularity_distance
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, add_ur5e
 from drake_lfd.robot.scene import add_scene
 from drake_lfd.robot.workcell import Workcell
@@ -399,7 +399,7 @@ def _add_pass_speed_bound(trajopt: KinematicTrajectoryOptimization, J: np.ndarra
 
 
 # The wrist centre's signed distance from the shoulder axis
-# (``joint_path.shoulder_singularity_distance``) is the x coordinate, in the shoulder
+# (``dh_kinematics.shoulder_singularity_distance``) is the x coordinate, in the shoulder
 # link's frame, of the wrist-2 link's origin (tests/test_trajectory_optimization.py
 # checks this on random configurations).
 SHOULDER_FRAME_NAME, WRIST_CENTRE_FRAME_NAME = "shoulder_link", "wrist_2_link"
