@@ -30,7 +30,14 @@ The modules:
 * ``path_timing``: time-optimal timing of a plan's joint path under the UR5e's limits.
 * ``toppra``: TOPP-RA with each stage's linear program in closed form.
 * ``trajectory_optimization``: Drake's kinematic trajectory optimization of a joint path
-  in a work cell (``--refine``).
+  in a work cell (``--refine``): the program, built and solved.
+* ``optimization_records``: the program's inputs and answer: limits, SNOPT's work
+  budget, pose targets and bounds, the optimized trajectory.
+* ``optimization_scene``: the work cell as the program's clearance constraint sees it.
+* ``trajectory_constraints``: the constraints the program writes itself (rotation
+  targets, the speed at a target, the shoulder margin, singularity-free intervals).
+* ``trajectory_sampling``: the program's B-spline guess fitted to joint samples, and its
+  solution sampled at the controller's period.
 * ``workcell``: the one description of the work cell: robot base, table, obstacles,
   shells and tool.
 * ``scene``: the work cell's geometry on the plant; signed distances.
