@@ -134,15 +134,15 @@ def optimize_joint_trajectory(
 
     Parameters
     ----------
-    scene : OptimizationScene
+    scene : optimization_scene.OptimizationScene
     guess : BsplineTrajectory
         Initial guess ``q(s)``; its number of control points and order are the program's.
     guess_duration_s : float
     targets, bounds : sequences of PoseTarget, PoseBound
     clearance_samples : int
         Path fractions (evenly spread, ends included) the clearance is constrained at.
-    limits : TrajectoryLimits
-    budget : SolverBudget
+    limits : optimization_records.TrajectoryLimits
+    budget : optimization_records.SolverBudget
         SNOPT's iteration limits (and the wall-clock safety stop). SNOPT runs single
         threaded and writes no print or summary file, so the answer depends on the
         program and these counts only. The SNOPT shipped with Drake ignores its own
