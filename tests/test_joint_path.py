@@ -12,7 +12,8 @@ from pydrake.multibody.tree import JacobianWrtVariable
 from drake_lfd.core.pose_conversions import dual_quaternion_from_matrices
 from drake_lfd.core.tasks import Box
 from drake_lfd.core.timing import time_plan
-from drake_lfd.robot.joint_path import JointPathChecker, shoulder_singularity_distance, ur5e_reach_m
+from drake_lfd.robot.dh_kinematics import shoulder_singularity_distance, ur5e_reach_m
+from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene
 
@@ -155,7 +156,7 @@ def test_a_tool_entering_a_shell_is_found_at_plan_time_by_its_name():
 
 
 def test_a_clearance_shortfall_is_printed_with_the_digits_that_show_it():
-    from drake_lfd.robot.joint_path import describe_clearance_shortfall, describe_shoulder_shortfall
+    from drake_lfd.robot.joint_path_records import describe_clearance_shortfall, describe_shoulder_shortfall
 
     # 9.96 mm under a 10 mm clearance used to read "passes 10.0 mm": the reason was invisible.
     assert describe_clearance_shortfall("safety shell 'box_shell'", 0.00996, 0.01) == (

@@ -233,7 +233,7 @@ def test_a_refined_motion_that_breaks_a_path_constraint_is_refused(tmp_path, mon
     constraint, the check refuses each for it, and the composed plan stands."""
     import drake_lfd.planning.refinement as refinement_module
     from pydrake.math import RotationMatrix
-    from drake_lfd.robot.trajectory_optimization import PoseBound
+    from drake_lfd.robot.optimization_records import PoseBound
 
     path = tmp_path / "free.yaml"
     path.write_text(TENDING.read_text().replace("tolerance_deg: 3}",

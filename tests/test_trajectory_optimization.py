@@ -5,16 +5,12 @@ keep too; the scene's memory of solved programs (the same bits as a fresh solve)
 import numpy as np
 import pytest
 
-from drake_lfd.robot.joint_path import shoulder_singularity_distance
-from drake_lfd.robot.trajectory_optimization import (
-    SHOULDER_FRAME_NAME,
-    WRIST_CENTRE_FRAME_NAME,
-    OptimizationScene,
-    SolverBudget,
-    TrajectoryLimits,
-    fit_bspline,
-    optimize_joint_trajectory,
-)
+from drake_lfd.robot.dh_kinematics import shoulder_singularity_distance
+from drake_lfd.robot.optimization_records import SolverBudget, TrajectoryLimits
+from drake_lfd.robot.optimization_scene import OptimizationScene
+from drake_lfd.robot.trajectory_constraints import SHOULDER_FRAME_NAME, WRIST_CENTRE_FRAME_NAME
+from drake_lfd.robot.trajectory_optimization import optimize_joint_trajectory
+from drake_lfd.robot.trajectory_sampling import fit_bspline
 from drake_lfd.robot.workcell import Workcell
 
 

@@ -122,6 +122,16 @@ def quaternion_from_axis_angle(axis: ArrayLike, angle: ArrayLike) -> NDArray[np.
     return np.concatenate([np.broadcast_to(np.cos(half), vector.shape[:-1] + (1,)), vector], axis=-1)
 
 
+def _with_w_not_negative(q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """``(w, u, |u|)`` of the sign of each unit quaternion with ``w >= 0`` (``u``: its
+    vector part), shapes (...), (..., 3), (...)."""
+    q = np.asarray(q, dtype=float)
+    sign = np.where(q[..., :1] < 0.0, -1.0, 1.0)
+    w = sign[..., 0] * q[..., 0]
+    u = sign * q[..., 1:]
+    return w, u, np.linalg.norm(u, axis=-1)
+
+
 def axis_angle_from_quaternion(q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Axis and angle of unit quaternions, the angle in [0, pi].
 
@@ -137,11 +147,7 @@ def axis_angle_from_quaternion(q: ArrayLike) -> tuple[NDArray[np.float64], NDArr
     angle : array, shape (...)
         Rotation angles in [0, pi].
     """
-    q = np.asarray(q, dtype=float)
-    sign = np.where(q[..., :1] < 0.0, -1.0, 1.0)
-    w = sign[..., 0] * q[..., 0]
-    u = sign * q[..., 1:]
-    norm_u = np.linalg.norm(u, axis=-1)
+    w, u, norm_u = _with_w_not_negative(q)
     angle = 2.0 * np.arctan2(norm_u, w)
     safe = norm_u > 0.0
     axis = np.where(
@@ -153,22 +159,9 @@ def axis_angle_from_quaternion(q: ArrayLike) -> tuple[NDArray[np.float64], NDArr
 
 
 def rotation_vector_from_quaternion(q: ArrayLike) -> NDArray[np.float64]:
-    """Rotation vectors ``angle * axis`` (angle in [0, pi]) of unit quaternions.
-
-    Parameters
-    ----------
-    q : array-like, shape (..., 4)
-        Unit quaternions; ``q`` and ``-q`` give the same result.
-
-    Returns
-    -------
-    omega : array, shape (..., 3)
-    """
-    q = np.asarray(q, dtype=float)
-    sign = np.where(q[..., :1] < 0.0, -1.0, 1.0)
-    w = sign[..., 0] * q[..., 0]
-    u = sign * q[..., 1:]
-    norm_u = np.linalg.norm(u, axis=-1)
+    """Rotation vectors ``omega = angle * axis`` (angle in [0, pi]) of unit quaternions,
+    shape (..., 4) -> (..., 3); ``q`` and ``-q`` give the same ``omega``."""
+    w, u, norm_u = _with_w_not_negative(q)
     # angle / |u| -> 2 / w as |u| -> 0 (w -> 1 there since w >= 0).
     small = norm_u < 1e-8
     factor = np.where(

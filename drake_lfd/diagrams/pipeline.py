@@ -85,7 +85,8 @@ from drake_lfd.planning.q_learning import QPolicy
 from drake_lfd.planning.replanning import ScheduledPlan
 from drake_lfd.planning.span_index import prepared_library
 from drake_lfd.robot.initial_ik import InitialConfiguration, solve_initial_configuration
-from drake_lfd.robot.joint_path import JointPathChecker, JointPathLimits
+from drake_lfd.robot.joint_path import JointPathChecker
+from drake_lfd.robot.joint_path_records import JointPathLimits
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, UR5eKinematics
 from drake_lfd.robot.scene import KinematicScene
 from drake_lfd.robot.workcell import Workcell, table_under_robot

@@ -49,7 +49,7 @@ from drake_lfd.robot.differential_ik_law import (
     DEFAULT_TIME_STEP_S,
     DEFAULT_VELOCITY_LIMIT_FRACTION,
 )
-from drake_lfd.robot.joint_path import JointPathLimits
+from drake_lfd.robot.joint_path_records import JointPathLimits
 
 __all__ = [
     "DriveConfig",
@@ -72,7 +72,7 @@ __all__ = [
 
 # The defaults of the closed loop's systems, each stated once: the controller's are the
 # differential-IK law's (robot/differential_ik_law.py), the joint check's margins
-# JointPathLimits' (robot/joint_path.py); these two are the systems' own, which
+# JointPathLimits' (robot/joint_path_records.py); these two are the systems' own, which
 # systems/shell_monitor.py and systems/planner.py take from here.
 #: The shell monitor's sampling period, s.
 DEFAULT_MONITOR_PERIOD_S = 0.01

@@ -45,7 +45,8 @@ from pydrake.math import RigidTransform
 
 from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
 from drake_lfd.planning.composition import CompositionProblem, Step
-from drake_lfd.robot.joint_path import Blocker, JointPath, JointPathChecker
+from drake_lfd.robot.joint_path import JointPathChecker
+from drake_lfd.robot.joint_path_records import Blocker, JointPath
 
 __all__ = ["MAX_SEARCH_ROUNDS", "MAX_START_BRANCHES", "InfeasibleSegment", "ExecutableSearch",
            "search_executable"]

@@ -16,7 +16,7 @@ from __future__ import annotations
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.refinement import RefinementOptions, _optimize
 from drake_lfd.robot.joint_path import JointPathChecker
-from drake_lfd.robot.trajectory_optimization import OptimizationScene
+from drake_lfd.robot.optimization_scene import OptimizationScene
 
 __all__ = ["plain_plan"]
 

@@ -37,7 +37,9 @@ from drake_lfd.core.similarity import Tolerances
 from drake_lfd.core.tasks import Box, ConcreteTask, angle_candidates, stops_of
 from drake_lfd.robot.analytic_ik import UR5E_DH_D
 from drake_lfd.robot.clearance import LINK_RADIUS_M, clearances, tool_clearance_points
-from drake_lfd.robot.joint_path import JointPath, JointPathChecker, ur5e_reach_m
+from drake_lfd.robot.dh_kinematics import ur5e_reach_m
+from drake_lfd.robot.joint_path import JointPathChecker
+from drake_lfd.robot.joint_path_records import JointPath
 from drake_lfd.robot.path_timing import TimingError, retime_plan
 from drake_lfd.core.timing import TimedPlan, TimingLimits, time_plan
 
@@ -311,7 +313,7 @@ def compose_plan(
 
 def out_of_reach(task: ConcreteTask) -> list[InfeasibleSegment]:
     """The critical configurations farther from the shoulder than the arm can reach
-    (:func:`~drake_lfd.robot.joint_path.ur5e_reach_m`), one segment each (the one
+    (:func:`~drake_lfd.robot.dh_kinematics.ur5e_reach_m`), one segment each (the one
     arriving at it; con_1 -> con_2 for con_1)."""
     shoulder = task.X_WB.multiply(np.array([0.0, 0.0, UR5E_DH_D[0]]))  # (d1: the shoulder above the base)
     reach = ur5e_reach_m(task.X_tool0_E)

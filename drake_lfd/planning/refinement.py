@@ -62,16 +62,10 @@ from drake_lfd.core.timing import TimedPlan, TimingLimits
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.path_constraints import allowed_deviation, constraint_rotation, describe_constraint
-from drake_lfd.robot.trajectory_optimization import (
-    OptimizationScene,
-    PoseBound,
-    PoseTarget,
-    SolverBudget,
-    TrajectoryLimits,
-    fit_bspline,
-    optimize_joint_trajectory,
-    sample_trajectory,
-)
+from drake_lfd.robot.optimization_records import PoseBound, PoseTarget, SolverBudget, TrajectoryLimits
+from drake_lfd.robot.optimization_scene import OptimizationScene
+from drake_lfd.robot.trajectory_optimization import optimize_joint_trajectory
+from drake_lfd.robot.trajectory_sampling import fit_bspline, sample_trajectory
 
 __all__ = [
     "RefinementOptions",

@@ -51,9 +51,9 @@ from drake_lfd.planning.composition import CompositionProblem
 from drake_lfd.planning.executable import InfeasibleSegment
 from drake_lfd.robot.analytic_ik import elbow_and_wrist_sines, shoulder_pan_roots
 from drake_lfd.robot.motion_bounds import motion_bounds
-from drake_lfd.robot.joint_path import (
-    Blocker, JointPathChecker, describe_clearance_shortfall, describe_shoulder_shortfall, shoulder_singularity_distance,
-)
+from drake_lfd.robot.dh_kinematics import shoulder_singularity_distance
+from drake_lfd.robot.joint_path import JointPathChecker
+from drake_lfd.robot.joint_path_records import Blocker, describe_clearance_shortfall, describe_shoulder_shortfall
 
 __all__ = ["branch_signature", "branch_violation", "blocked_configurations", "distinct_reasons",
            "PoseBlockers"]

@@ -13,19 +13,31 @@ The modules:
 * ``kinematics``: the UR5e model loaded into a MultibodyPlant; forward kinematics of
   ``tool0`` and the end-effector frame E, joint limits.
 * ``dh_kinematics``: forward kinematics and Jacobian from the DH table, in plain floats
-  (the fast path of the joint-path check).
+  (the fast path of the joint-path check); the shoulder singularity's distance and the
+  arm's reach.
 * ``analytic_ik``: closed-form inverse kinematics, every branch reaching a flange pose.
 * ``initial_ik``: the joint configuration at the first critical configuration.
 * ``differential_ik_law``: the differential-IK law, one joint-velocity step toward a
   desired end-effector motion (shared by the check and the baseline controller).
 * ``joint_path``: the plan-time joint-path check (``JointPathChecker``): a timed SE(3)
   plan followed as the controller will follow it.
+* ``joint_path_records``: what the check keeps to and reports: ``JointPathLimits``,
+  ``Blocker``, ``JointPath``, and how a shortfall is worded.
+* ``follow_memory``: the check's memory of its last follows, so a plan sharing a prefix
+  resumes where they part.
 * ``path_constraints``: a task's path constraints measured on a motion (the one measure
   the check, the refinement and the judge share).
 * ``path_timing``: time-optimal timing of a plan's joint path under the UR5e's limits.
 * ``toppra``: TOPP-RA with each stage's linear program in closed form.
 * ``trajectory_optimization``: Drake's kinematic trajectory optimization of a joint path
-  in a work cell (``--refine``).
+  in a work cell (``--refine``): the program, built and solved.
+* ``optimization_records``: the program's inputs and answer: limits, SNOPT's work
+  budget, pose targets and bounds, the optimized trajectory.
+* ``optimization_scene``: the work cell as the program's clearance constraint sees it.
+* ``trajectory_constraints``: the constraints the program writes itself (rotation
+  targets, the speed at a target, the shoulder margin, singularity-free intervals).
+* ``trajectory_sampling``: the program's B-spline guess fitted to joint samples, and its
+  solution sampled at the controller's period.
 * ``workcell``: the one description of the work cell: robot base, table, obstacles,
   shells and tool.
 * ``scene``: the work cell's geometry on the plant; signed distances.

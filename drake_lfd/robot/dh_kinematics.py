@@ -1,4 +1,4 @@
-"""The UR5e's forward kinematics and Jacobian from its DH table, in plain floats.
+"""The UR5e's forward kinematics, Jacobian, shoulder singularity and reach from its DH table.
 
 The joint-path check (``joint_path.py``) steps the differential-IK law some 1,500 times
 per plan. On the plant, each step's pose and Jacobian cost several pybind calls and
@@ -18,6 +18,12 @@ Jacobian, so ``J^-1 V`` and its scale under the joint limits are the same.
 the timing's tool-deviation figure and the re-derivation of logged runs
 (``experiments/rederive.py``) use it.
 
+From the same table: :func:`shoulder_singularity_distance`, the wrist centre's distance
+from the shoulder axis (the Jacobian's determinant is ``a2 a3 sin q3 sin q5`` times it,
+so it vanishes at the shoulder singularity), and :func:`ur5e_reach_m`, a bound on how far
+E can be from the shoulder; the joint-path check, its refusals and the trajectory
+optimization keep to the one and the planner refuses beyond the other.
+
 Not for: inverse kinematics (``analytic_ik.py``), collision geometry (``scene.py``).
 """
 
@@ -31,10 +37,13 @@ from pydrake.math import RigidTransform
 
 from drake_lfd.robot.analytic_ik import UR5E_DH_A, UR5E_DH_D
 
-__all__ = ["DHArm", "rotation_error", "rotation_matrices"]
+__all__ = ["DHArm", "rotation_error", "rotation_matrices", "shoulder_singularity_distance", "ur5e_reach_m"]
 
 # Standard DH twist of each link: sin of alpha = pi/2, 0, 0, pi/2, -pi/2, 0.
 _SIN_ALPHA = (1.0, 0.0, 0.0, 1.0, -1.0, 0.0)
+# UR5e DH parameters (m): the shoulder singularity's distance and the reach bound.
+_A2, _A3 = UR5E_DH_A[1], UR5E_DH_A[2]
+_D4, _D5, _D6 = UR5E_DH_D[3], UR5E_DH_D[4], UR5E_DH_D[5]
 
 
 class DHArm:
@@ -139,3 +148,16 @@ def rotation_matrices(quaternions: np.ndarray) -> np.ndarray:
         np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
         np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
     ], axis=1)
+
+
+def shoulder_singularity_distance(q: np.ndarray) -> float:
+    """Signed distance of the UR5e's wrist point from the shoulder axis, m (zero at the
+    shoulder singularity)."""
+    return _A2 * math.cos(q[1]) + _A3 * math.cos(q[1] + q[2]) + _D5 * math.sin(q[1] + q[2] + q[3])
+
+
+def ur5e_reach_m(X_tool0_E: RigidTransform | None = None) -> float:
+    """An upper bound on the distance from the shoulder joint's centre to E, m: the
+    links' lengths and offsets plus the tool's."""
+    tool = 0.0 if X_tool0_E is None else float(np.linalg.norm(X_tool0_E.translation()))
+    return abs(_A2) + abs(_A3) + _D4 + _D5 + _D6 + tool

@@ -32,9 +32,11 @@ The checks:
 - **reach**: E within the success tolerances (5 mm, 2 deg) of each critical
   configuration when it is due, and within the path tolerance (5 cm, 15 deg) everywhere.
 
-It stops at the first violation and says which it was, when, and in which span. A
-configuration beyond the arm's reach (farther from the shoulder than the arm's links
-and tool together) is refused before following anything.
+It stops at the first violation and says which it was, when, and in which span (a
+:class:`~drake_lfd.robot.joint_path_records.Blocker`; the margins are those of
+:class:`~drake_lfd.robot.joint_path_records.JointPathLimits`). A configuration beyond
+the arm's reach (farther from the shoulder than the arm's links and tool together) is
+refused before following anything.
 
 Start configurations and windings: :meth:`JointPathChecker.follow_from_candidates`
 tries the inverse-kinematics branches of the first pose, best first, and for each the
@@ -42,13 +44,14 @@ tries the inverse-kinematics branches of the first pose, best first, and for eac
 UR5e), shifting the start by one turn away from a limit the path ran into; the whole
 plan decides, not con_1 alone.
 
-Reuse: a checker remembers its last follows with the loop's whole state at the start of
-each span. A plan identical to one of them (times, poses, critical indices, to the bit)
-up to a critical configuration, from the same start, resumes there: the lazy search's
-next composition re-follows only the spans after the one it changed, and a trial of a
-task whose first spans do not depend on its variables only the rest. The steps before
-a critical configuration interpolate only the samples up to it, so the result is the
-full follow's, to the bit, whichever plans were followed before.
+Reuse: a checker remembers its last follows (``follow_memory.py``) with the loop's
+whole state at the start of each span. A plan identical to one of them (times, poses,
+critical indices, to the bit) up to a critical configuration, from the same start,
+resumes there: the lazy search's next composition re-follows only the spans after the
+one it changed, and a trial of a task whose first spans do not depend on its variables
+only the rest. The steps before a critical configuration interpolate only the samples
+up to it, so the result is the full follow's, to the bit, whichever plans were followed
+before.
 
 Not for: choosing a composition (``planning/``), simulating the robot (``diagrams/``).
 """
@@ -58,7 +61,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections import OrderedDict
 from collections.abc import Sequence
 
 import numpy as np
@@ -81,9 +83,16 @@ from drake_lfd.robot.differential_ik_law import (
     DifferentialIKLaw,
     pose_error,
 )
-from drake_lfd.robot.analytic_ik import UR5E_DH_A, UR5E_DH_D
 from drake_lfd.robot.initial_ik import UnreachableConfigurationError, initial_configuration_candidates
-from drake_lfd.robot.dh_kinematics import DHArm, rotation_error, rotation_matrices
+from drake_lfd.robot.dh_kinematics import DHArm, rotation_error, rotation_matrices, shoulder_singularity_distance
+from drake_lfd.robot.follow_memory import FollowCheckpoint, FollowMemory, FollowRecord
+from drake_lfd.robot.joint_path_records import (
+    Blocker,
+    JointPath,
+    JointPathLimits,
+    describe_clearance_shortfall,
+    describe_shoulder_shortfall,
+)
 from drake_lfd.robot.kinematics import (
     BASE_FRAME_NAME,
     END_EFFECTOR_FRAME_NAME,
@@ -101,220 +110,13 @@ from drake_lfd.robot.path_constraints import (
 )
 from drake_lfd.robot.scene import KinematicScene
 
-__all__ = [
-    "REASONS",
-    "JointPathLimits",
-    "Blocker",
-    "JointPath",
-    "shoulder_singularity_distance",
-    "ur5e_reach_m",
-    "millimetres_below",
-    "describe_clearance_shortfall",
-    "describe_shoulder_shortfall",
-    "JointPathChecker",
-]
+__all__ = ["JointPathChecker"]
 
-REASONS = ("reach", "joint_limit", "singularity", "collision", "path_constraint")
-
-# UR5e DH parameters (m): the shoulder singularity's distance and the reach bound.
-_A2, _A3 = UR5E_DH_A[1], UR5E_DH_A[2]
-_D1, _D4, _D5, _D6 = UR5E_DH_D[0], UR5E_DH_D[3], UR5E_DH_D[4], UR5E_DH_D[5]
 # Links standing on the table: never checked against it.
 _ON_TABLE_LINKS = ("base_link", "shoulder_link")
-
-
-@dataclasses.dataclass(frozen=True)
-class JointPathLimits:
-    """What a joint path must keep to (all configurable; the defaults are documented in
-    the module docstring).
-
-    Attributes
-    ----------
-    elbow_margin, wrist_margin : float
-        Least ``|sin q3|`` and ``|sin q5|`` (0.06, about 3.4 deg from straight/aligned:
-        a closed-loop run is judged against 0.05, and the servos' lag moves the joints
-        by far less than the difference).
-    shoulder_margin_m : float
-        Least distance of the wrist point from the shoulder axis, m (0.05).
-    clearance_m : float
-        Least signed distance of any robot or tool geometry to any box, m (0.01).
-    position_tolerance_m, rotation_tolerance_rad : float
-        At each critical configuration when due (the closed loop's success tolerances).
-    path_position_tolerance_m, path_rotation_tolerance_rad : float
-        Anywhere along the path (5 cm, 15 deg: a motion slowed by a speed limit may lag
-        and catch up by the next critical configuration; the clearance is checked on
-        the lagging path itself).
-    settle_steps : int
-        Controller steps followed after the plan's end (the closed loop keeps tracking).
-    """
-
-    elbow_margin: float = 0.06
-    wrist_margin: float = 0.06
-    shoulder_margin_m: float = 0.05
-    clearance_m: float = 0.01
-    position_tolerance_m: float = 0.005
-    rotation_tolerance_rad: float = math.radians(2.0)
-    path_position_tolerance_m: float = 0.05
-    path_rotation_tolerance_rad: float = math.radians(15.0)
-    settle_steps: int = 10
-
-
-@dataclasses.dataclass(frozen=True)
-class Blocker:
-    """Why a joint path is not executable.
-
-    Attributes
-    ----------
-    reason : str
-        One of :data:`REASONS`.
-    detail : str
-        One line for a person (``forearm_link/forearm enters safety shell 'shell' by
-        4.2 mm``).
-    time_s : float
-        Plan time of the violation.
-    span : int
-        0-based index of the span (between consecutive critical configurations) it is in.
-    con : int or None
-        1-based critical configuration concerned (``reach`` at a critical configuration).
-    pair : tuple of (GeometryId, GeometryId) or None
-        For a ``collision``: the robot geometry and the box (or table) too close.
-    """
-
-    reason: str
-    detail: str
-    time_s: float
-    span: int
-    con: int | None = None
-    pair: tuple | None = None
-
-
-@dataclasses.dataclass(frozen=True)
-class JointPath:
-    """The joint path of a plan, as the controller would command it.
-
-    Attributes
-    ----------
-    t : array (m,)
-        Plan times of the samples (the controller's period), s.
-    q : array (m, 6)
-        Commanded joint positions.
-    blocker : Blocker or None
-        The first violation (the path then ends there); None when executable.
-    critical_errors : tuple of (position_m, rotation_rad)
-        At each critical configuration reached before the blocker.
-    min_clearance_m : float
-        Least clearance measured along the path (inf without boxes).
-    min_elbow, min_wrist, min_shoulder_m : float
-        Least ``|sin q3|``, ``|sin q5|`` and shoulder distance along the path.
-    start_index : int
-        Which start configuration candidate it followed from.
-    clearances : array (m,)
-        The least distance measured at each sample (inf where every pair was proven
-        beyond the clearance).
-    """
-
-    t: np.ndarray
-    q: np.ndarray
-    blocker: Blocker | None
-    critical_errors: tuple[tuple[float, float], ...]
-    min_clearance_m: float
-    min_elbow: float
-    min_wrist: float
-    min_shoulder_m: float
-    start_index: int = 0
-    clearances: np.ndarray | None = None
-
-    @property
-    def executable(self) -> bool:
-        return self.blocker is None
-
-
-def shoulder_singularity_distance(q: np.ndarray) -> float:
-    """Signed distance of the UR5e's wrist point from the shoulder axis, m (zero at the
-    shoulder singularity)."""
-    return _A2 * math.cos(q[1]) + _A3 * math.cos(q[1] + q[2]) + _D5 * math.sin(q[1] + q[2] + q[3])
-
-
-def ur5e_reach_m(X_tool0_E: RigidTransform | None = None) -> float:
-    """An upper bound on the distance from the shoulder joint's centre to E, m: the
-    links' lengths and offsets plus the tool's."""
-    tool = 0.0 if X_tool0_E is None else float(np.linalg.norm(X_tool0_E.translation()))
-    return abs(_A2) + abs(_A3) + _D4 + _D5 + _D6 + tool
-
-
-# Follows a checker remembers for resuming, per start configuration (the lazy search's
-# last compositions and the previous trials' plans; each holds one path and a checkpoint
-# per critical configuration), and the starts it remembers them for (the search tries up
-# to three branches and their windings).
-_REMEMBERED_FOLLOWS = 4
-_REMEMBERED_STARTS = 16
 # Poses whose inverse-kinematics branches a checker remembers (a 20-configuration task's
 # candidates are a few hundred).
 _REMEMBERED_POSES = 1024
-
-
-@dataclasses.dataclass(frozen=True)
-class _Checkpoint:
-    """The follow loop's whole state at the start of step ``k``, the first sample of the
-    span from critical configuration ``con`` (0-based)."""
-
-    con: int
-    k: int
-    q: np.ndarray
-    wake: np.ndarray
-    travel: np.ndarray
-    q_previous: tuple
-    slack: float
-    minima: tuple[float, float, float, float]  # clearance, elbow, wrist, shoulder
-    span: int
-    next_con: int
-    critical_errors: tuple
-
-
-@dataclasses.dataclass(frozen=True)
-class _FollowRecord:
-    """One follow: its start, its plan's samples, its path and its checkpoints by con."""
-
-    q_start: bytes
-    critical_indices: tuple[int, ...]
-    times: np.ndarray
-    poses: np.ndarray
-    path: "JointPath"
-    checkpoints: dict
-
-
-def _equal_rows(a: np.ndarray, b: np.ndarray) -> int:
-    """How many leading rows of the float arrays ``a`` and ``b`` are equal to the bit."""
-    rows = min(len(a), len(b))
-    if a.shape[1:] != b.shape[1:]:
-        return 0
-    differ = np.flatnonzero((a[:rows].view(np.uint64) != b[:rows].view(np.uint64)).reshape(rows, -1).any(axis=1))
-    return int(differ[0]) if len(differ) else rows
-
-
-
-def millimetres_below(value_m: float, limit_m: float) -> str:
-    """``value_m`` in millimetres with the fewest decimals (1 to 4) that show it below
-    ``limit_m`` (9.96 mm under a 10 mm clearance reads ``9.96``, not ``10.0``)."""
-    for digits in (1, 2, 3, 4):
-        text = f"{1000 * value_m:.{digits}f}"
-        if float(text) < 1000 * limit_m:
-            return text
-    return f"{1000 * value_m:.4f}"
-
-
-def describe_clearance_shortfall(what: str, distance_m: float, clearance_m: float) -> str:
-    """``enters WHAT by D mm`` or ``passes D mm from WHAT (clearance C mm)``, with digits
-    enough to show the shortfall."""
-    if distance_m < 0:
-        return f"enters {what} by {-1000 * distance_m:.1f} mm"
-    return f"passes {millimetres_below(distance_m, clearance_m)} mm from {what} (clearance {1000 * clearance_m:g} mm)"
-
-
-def describe_shoulder_shortfall(distance_m: float, margin_m: float) -> str:
-    """The wrist centre's distance from the shoulder axis, below its margin."""
-    return (f"wrist centre {millimetres_below(distance_m, margin_m)} mm from the shoulder axis "
-            f"(< {1000 * margin_m:g} mm)")
 
 
 class JointPathChecker:
@@ -341,8 +143,8 @@ class JointPathChecker:
         self.X_WB = RigidTransform() if X_WB is None else RigidTransform(X_WB)
         self.limits = limits
         self._branches = ExactMemo(maxsize=_REMEMBERED_POSES)
-        # The last follows from each start, newest first; the starts least recently used first.
-        self._follows: OrderedDict[bytes, list[_FollowRecord]] = OrderedDict()
+        # The last follows from each start, to resume plans sharing a prefix.
+        self._follows = FollowMemory()
         # Answers the planning layer derives from this scene alone, kept with the checker
         # (built once per scene) so that later plans in it reuse them: the planner's twist
         # orders (planning/planner.py) and the refusals' pan-only rows and sweep
@@ -411,7 +213,8 @@ class JointPathChecker:
 
         A plan this checker followed before from the same start, identical (times,
         poses, critical indices) up to one of its critical configurations, is resumed
-        from the state the loop had there (:class:`_Checkpoint`): the law is
+        from the state the loop had there
+        (:class:`~drake_lfd.robot.follow_memory.FollowCheckpoint`): the law is
         deterministic, so the result equals a full follow to the bit.
         """
         path = self._follow(plan, np.array(q_start, dtype=float))
@@ -421,7 +224,7 @@ class JointPathChecker:
         limits, law, dt = self.limits, self.law, self.time_step
         critical_indices = tuple(int(i) for i in plan.critical_indices)
         plan_times, plan_poses = np.array(plan.times, dtype=float), np.array(plan.poses, dtype=float)
-        record, checkpoint = self._reusable(q_start, critical_indices, plan_times, plan_poses)
+        record, checkpoint = self._follows.reusable(q_start, critical_indices, plan_times, plan_poses)
         if checkpoint is None and record is not None:
             return record.path  # the same plan from the same start
         duration = plan.duration
@@ -431,7 +234,7 @@ class JointPathChecker:
         # The loop's state at the first sample of each span (con 2 on): where a later
         # plan sharing the prefix resumes.
         checkpoint_at = {int(math.ceil(d / dt - 1e-9)): c for c, d in enumerate(due) if c > 0}
-        checkpoints: dict[int, _Checkpoint] = {}
+        checkpoints: dict[int, FollowCheckpoint] = {}
         if checkpoint is None:
             first = 0
             q = q_start.tolist()
@@ -459,7 +262,8 @@ class JointPathChecker:
         for k in range(first, steps + 1):
             if k in checkpoint_at and k > first:
                 c = checkpoint_at[k]
-                checkpoints[c] = _Checkpoint(c, k, np.array(q), wake.copy(), np.array(travel), tuple(q_previous), slack,
+                checkpoints[c] = FollowCheckpoint(c, k, np.array(q), wake.copy(), np.array(travel), tuple(q_previous),
+                                                 slack,
                                              (min_clearance, min_elbow, min_wrist, min_shoulder), span, next_con,
                                              tuple(critical_errors))
             t = k * dt
@@ -534,7 +338,8 @@ class JointPathChecker:
         clearances += [math.inf] * (len(times) - len(clearances))  # a sample stopped before its check
         result = JointPath(np.array(times), np.array(path), blocker, tuple(critical_errors),
                            min_clearance, min_elbow, min_wrist, min_shoulder, clearances=np.array(clearances))
-        self._remember(_FollowRecord(q_start.tobytes(), critical_indices, plan_times, plan_poses, result, checkpoints))
+        self._follows.remember(FollowRecord(q_start.tobytes(), critical_indices, plan_times, plan_poses, result,
+                                           checkpoints))
         return result
 
     def _held_to(self, path: JointPath, plan: TimedPlan, constraints: Sequence) -> JointPath:
@@ -619,38 +424,6 @@ class JointPathChecker:
         q = np.array(q)
         v = self.law.joint_velocity(q, q, RigidTransform(RotationMatrix(R_W), p_W), V_W)
         return v.tolist(), self.law.last_pose_error.tolist()
-
-    def _reusable(self, q_start, critical_indices, times, poses):
-        """The remembered follow from ``q_start`` sharing the longest prefix with the
-        plan (``critical_indices``, ``times`` (n,), ``poses`` (n, 8)), and the checkpoint
-        to resume it from: ``(record, None)`` when the whole plan is the same, ``(None,
-        None)`` when nothing is shared. Shared means equal to the bit: the samples up to
-        the checkpoint's critical configuration (the steps before it interpolate only
-        those) and the critical indices up to it, with as many critical configurations."""
-        best, best_point = None, None
-        for record in self._follows.get(q_start.tobytes(), ()):
-            if len(record.critical_indices) != len(critical_indices):
-                continue
-            shared = min(_equal_rows(record.times, times), _equal_rows(record.poses, poses))
-            if record.critical_indices == critical_indices and shared == len(times) == len(record.times):
-                return record, None
-            for c in sorted(record.checkpoints, reverse=True):
-                if best_point is not None and c <= best_point.con:
-                    break
-                if critical_indices[c] < shared and record.critical_indices[:c + 1] == critical_indices[:c + 1]:
-                    best, best_point = record, record.checkpoints[c]
-                    break
-        return best, best_point
-
-    def _remember(self, record: "_FollowRecord") -> None:
-        """Keeps the last :data:`_REMEMBERED_FOLLOWS` follows from each of the last
-        :data:`_REMEMBERED_STARTS` starts."""
-        records = self._follows.pop(record.q_start, [])
-        records.insert(0, record)
-        del records[_REMEMBERED_FOLLOWS:]
-        self._follows[record.q_start] = records
-        while len(self._follows) > _REMEMBERED_STARTS:
-            self._follows.popitem(last=False)
 
     def _tracking_blocker(self, what: str, t: float, span: int, con: int | None = None) -> Blocker:
         """Why E fell behind: the limit that slowed the law's last step."""

@@ -1,8 +1,9 @@
 """Time-optimal timing of a plan's joint path under the UR5e's limits (Drake's ``Toppra``).
 
 The plan-time joint check records the joint path the arm takes through a plan
-(:class:`~drake_lfd.robot.joint_path.JointPath`, one sample per 10 ms controller step of
-a slow geometric pass). :func:`time_joint_path` gives that path its executed timing:
+(:class:`~drake_lfd.robot.joint_path_records.JointPath`, one sample per 10 ms
+controller step of a slow geometric pass). :func:`time_joint_path` gives that path its
+executed timing:
 
 1. **Path.** Samples that do not move are dropped; the path parameter ``s`` is the
    joint-space arc length (rad). A C2 cubic spline through knots ``knot_step_rad``
@@ -54,7 +55,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from drake_lfd.core.pose_conversions import dual_quaternion_from_matrices
 from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.timing import TimedPlan, TimingLimits
-from drake_lfd.robot.joint_path import JointPath
+from drake_lfd.robot.joint_path_records import JointPath
 from drake_lfd.robot.kinematics import UR5eKinematics
 from drake_lfd.robot.toppra import path_constraints, solve_parametrization
 
