@@ -108,12 +108,10 @@ from drake_lfd.robot.path_constraints import (
     describe_deviation,
     orientation_deviations,
 )
-from drake_lfd.robot.scene import KinematicScene
+from drake_lfd.robot.scene import ON_TABLE_LINKS, KinematicScene
 
 __all__ = ["JointPathChecker"]
 
-# Links standing on the table: never checked against it.
-_ON_TABLE_LINKS = ("base_link", "shoulder_link")
 # Poses whose inverse-kinematics branches a checker remembers (a 20-configuration task's
 # candidates are a few hundred).
 _REMEMBERED_POSES = 1024
@@ -164,7 +162,7 @@ class JointPathChecker:
         pairs = [(r, b) for b in boxes for r in robot_ids]
         for table in table_ids:
             pairs += [(r, table) for r in robot_ids
-                      if geometry.names.get(r, "").split("/")[0] not in _ON_TABLE_LINKS]
+                      if geometry.names.get(r, "").split("/")[0] not in ON_TABLE_LINKS]
         self._pairs = pairs
         bounds = {r: motion_bounds(plant, inspector, r) for r in robot_ids}
         # (pairs, joints) motion bounds; a pair without one is always measured.

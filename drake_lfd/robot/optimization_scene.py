@@ -23,13 +23,11 @@ from pydrake.systems.framework import DiagramBuilder
 
 from drake_lfd.core.exact_memo import ExactMemo
 from drake_lfd.robot.kinematics import END_EFFECTOR_FRAME_NAME, add_ur5e
-from drake_lfd.robot.scene import add_scene
+from drake_lfd.robot.scene import ON_TABLE_LINKS, add_scene
 from drake_lfd.robot.workcell import Workcell
 
 __all__ = ["OptimizationScene"]
 
-# Links standing on the table: never checked against it (as in joint_path.py).
-_ON_TABLE_LINKS = ("base_link", "shoulder_link")
 
 
 class OptimizationScene:
@@ -65,7 +63,7 @@ class OptimizationScene:
         manager.Apply(CollisionFilterDeclaration().ExcludeWithin(robot))
         if geometry.table_geometry_id is not None:
             on_table = [g for g in geometry.robot_geometry_ids
-                        if geometry.names.get(g, "").split("/")[0] in _ON_TABLE_LINKS]
+                        if geometry.names.get(g, "").split("/")[0] in ON_TABLE_LINKS]
             if on_table:
                 manager.Apply(CollisionFilterDeclaration().ExcludeBetween(
                     GeometrySet(on_table), GeometrySet([geometry.table_geometry_id])))

@@ -55,6 +55,7 @@ from drake_lfd.robot.kinematics import TOOL0_FRAME_NAME, add_ur5e
 from drake_lfd.robot.workcell import Workcell, table_under_robot
 
 __all__ = [
+    "ON_TABLE_LINKS",
     "OBSTACLE_RGBA",
     "SAFETY_SHELL_RGBA",
     "TABLE_RGBA",
@@ -75,6 +76,10 @@ TABLE_RGBA = np.array([0.55, 0.55, 0.55, 1.0])
 TOOL_RGBA = np.array([0.25, 0.45, 0.30, 1.0])
 # Dry steel-ish friction; only obstacles and the table can touch the robot.
 _FRICTION = CoulombFriction(static_friction=0.5, dynamic_friction=0.5)
+
+# Links standing on the table: never checked against it (the joint-path check and the
+# trajectory optimization's scene alike).
+ON_TABLE_LINKS = ("base_link", "shoulder_link")
 
 OBSTACLE = "obstacle"
 SAFETY_SHELL = "safety shell"
