@@ -181,6 +181,7 @@ def search_executable(
             first = search
         if not search.tried_a_start:
             break  # no composition even had this start branch to try
+    assert first is not None  # max_starts >= 1: the first start's search is kept
     return first
 
 
