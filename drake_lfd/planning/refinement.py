@@ -65,7 +65,7 @@ import numpy as np
 from drake_lfd.core.timing import TimingLimits
 from drake_lfd.planning.planner import PlanResult
 from drake_lfd.planning.refinement_bounds import _allowed, _path_constraint_bounds
-from drake_lfd.planning.refinement_check import _check_motion, _with_iterate
+from drake_lfd.planning.refinement_check import _check_motion, _Checked, _with_iterate
 from drake_lfd.planning.refinement_options import RefinementOptions
 from drake_lfd.planning.refinement_starts import (
     _START_NAMES,
@@ -80,6 +80,7 @@ from drake_lfd.planning.refinement_tube import _Reference, _tube_bounds
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.trajectory_optimization import (
     OptimizationScene,
+    OptimizedTrajectory,
     PoseTarget,
     TrajectoryLimits,
     fit_bspline,
@@ -164,7 +165,7 @@ class RefinementReport:
         def number(x):
             return None if not math.isfinite(x) else float(x)
 
-        document = {"method": self.method, "status": self.status, "reason": self.reason}
+        document: dict[str, object] = {"method": self.method, "status": self.status, "reason": self.reason}
         if wall_times:
             document.update(solve_time_s=float(self.solve_time_s), total_time_s=float(self.total_time_s))
         document.update(duration_s=number(self.duration_s), unrefined_duration_s=number(self.unrefined_duration_s),
@@ -189,6 +190,7 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     if not result.planned or result.joint_path is None or not result.joint_path.executable:
         return dataclasses.replace(result, refinement=report("failed", "no executable composed plan to refine"))
     timed, path = result.timed, result.joint_path
+    assert timed is not None  # a planned result has its timed plan
     scene = OptimizationScene(checker.scene.workcell) if scene is None else scene
     reference = _Reference(timed)
     fractions = reference.fractions
@@ -238,7 +240,8 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     rounds = (count,) if options.num_control_points else (count, count + count // 2)
     repair_limits = dataclasses.replace(limits, clearance_m=limits.clearance_m + options.repair_clearance_m)
     for attempt in rounds:
-        failures, passed = [], []
+        failures: list[tuple[str, str, _Checked | None]] = []
+        passed: list[tuple[OptimizedTrajectory, _Checked]] = []
         line_guess = fit_bspline(*lines, attempt, rest_ends=True, pins=pins)
         composed = functools.partial(fit_bspline, s_path, q_path, attempt, rest_ends=True, pins=pins)
         for label, guess, duration, first in _starts(method, line_guess, composed, limits, solve, path_bounds,

@@ -81,7 +81,7 @@ class _Allowed:
                          for source in self.sources], dtype=bool)
 
 
-def allowed_deviations(task, options: RefinementOptions = None) -> tuple[np.ndarray, np.ndarray]:
+def allowed_deviations(task, options: RefinementOptions | None = None) -> tuple[np.ndarray, np.ndarray]:
     """How far refinement may move E from the composed path over each span of ``task``
     (con_j to con_j+1): distances and angles (n - 1,), from the task's ``refinement``
     block, its path constraints and ``options``' tube (docs/task_files.rst)."""
@@ -104,7 +104,7 @@ def _allowed(task, fractions: np.ndarray, options: RefinementOptions) -> _Allowe
     sources = [["refinement.max_deviation" if value is not None else "the default"] * spans
                for value in (whole.position_m, whole.rotation_rad)]
     replaced = [np.full(spans, np.inf), np.full(spans, np.inf)]
-    replaced_by = [[None] * spans, [None] * spans]
+    replaced_by: list[list[str | None]] = [[None] * spans, [None] * spans]
     for index, span in enumerate(bounds.spans):
         for axis, value in enumerate((span.position_m, span.rotation_rad)):
             for j in range(span.con_from - 1, span.con_to - 1):
@@ -112,8 +112,9 @@ def _allowed(task, fractions: np.ndarray, options: RefinementOptions) -> _Allowe
                     replaced[axis][j], replaced_by[axis][j] = value, f"refinement.spans[{index}]"
     for axis in range(2):
         for j in range(spans):
-            if replaced_by[axis][j] is not None:
-                values[axis][j], sources[axis][j] = replaced[axis][j], replaced_by[axis][j]
+            source = replaced_by[axis][j]
+            if source is not None:
+                values[axis][j], sources[axis][j] = replaced[axis][j], source
     for constraint in task.path_constraints:
         bound = constraint.max_deviation or DeviationBound()
         rotation = bound.rotation_rad if bound.rotation_rad is not None else constraint.tolerance_rad

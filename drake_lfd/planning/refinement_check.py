@@ -24,7 +24,12 @@ from drake_lfd.planning.refinement_bounds import _Allowed
 from drake_lfd.planning.refinement_options import RefinementOptions
 from drake_lfd.planning.refinement_tube import _deviations, _Reference, _span_deviations
 from drake_lfd.robot.joint_path import JointPathChecker
-from drake_lfd.robot.trajectory_optimization import OptimizationScene, TrajectoryLimits, sample_trajectory
+from drake_lfd.robot.trajectory_optimization import (
+    OptimizationScene,
+    OptimizedTrajectory,
+    TrajectoryLimits,
+    sample_trajectory,
+)
 
 __all__: list[str] = []  # private to the refinement (refinement.py runs it)
 
@@ -41,7 +46,7 @@ class _Checked:
     fractions: np.ndarray | None = None
 
 
-def _check_motion(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene, solved,
+def _check_motion(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene, solved: OptimizedTrajectory,
                   allowed: _Allowed, limits: TrajectoryLimits, options: RefinementOptions,
                   method: str) -> _Checked:
     """Samples the solver's motion at the controller's period (module docstring), follows
@@ -50,6 +55,7 @@ def _check_motion(result: PlanResult, checker: JointPathChecker, scene: Optimiza
     success tolerances, within the task's bounds on the deviation from the composed path
     (``refine``; span by span, ``allowed``) and shorter than the composed plan."""
     timed, dt, fractions = result.timed, checker.time_step, allowed.fractions
+    assert timed is not None  # a planned result (the refinement refines nothing else)
     t, q, X, indices, s_samples = sample_trajectory(scene, solved.trajectory, fractions, time_step=dt,
                                                     tool_speed_m_s=limits.tool_speed_m_s,
                                                     tool_acceleration_m_s2=limits.tool_acceleration_m_s2,
@@ -81,6 +87,7 @@ def _check_motion(result: PlanResult, checker: JointPathChecker, scene: Optimiza
 
     if not followed.executable:
         b = followed.blocker
+        assert b is not None  # what makes it not executable
         return checked(f"check: {b.reason}: {b.detail} (t = {b.time_s:.2f} s)")
     tolerances = checker.limits
     for con, (c_position, c_rotation) in enumerate(followed.critical_errors, start=1):
@@ -131,7 +138,7 @@ def _excess(allowed: _Allowed, s: np.ndarray, position: np.ndarray, rotation: np
             f"{allowed.sources[j][axis]} allows {limit:g} {unit}")
 
 
-def _with_iterate(reason: str, solved) -> str:
+def _with_iterate(reason: str, solved: OptimizedTrajectory) -> str:
     """A failed check's reason, saying when the motion was SNOPT's last iterate."""
     if solved.budget_spent:
         return f"{reason}; SNOPT's last iterate at its {solved.status}"
