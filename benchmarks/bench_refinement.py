@@ -63,17 +63,12 @@ from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
 from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.planner import plan_composition
-from drake_lfd.planning.refinement import (
-    OptimizationScene,
-    RefinementOptions,
-    TrajectoryLimits,
-    path_fractions_of,
-    refine_plan,
-    shape_deviation,
-    tube_deviation,
-)
+from drake_lfd.planning.refinement import refine_plan
+from drake_lfd.planning.refinement_options import RefinementOptions
+from drake_lfd.planning.refinement_tube import path_fractions_of, shape_deviation, tube_deviation
 from drake_lfd.planning.plain_optimizer import plain_plan
 from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.robot.trajectory_optimization import OptimizationScene, TrajectoryLimits
 from drake_lfd.robot.workcell import Workcell
 
 METHODS = ("unrefined", "refined", "plain")

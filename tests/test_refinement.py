@@ -22,17 +22,14 @@ from drake_lfd.io.task_files import load_task
 from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.planner import plan_composition
 from drake_lfd.core.timing import TimingLimits
-from drake_lfd.planning.refinement import (
-    OptimizationScene,
-    RefinementOptions,
-    SolverBudget,
-    TrajectoryLimits,
-    refine_plan,
-    shape_deviation,
-)
+from drake_lfd.planning.refinement import refine_plan
+from drake_lfd.planning.refinement_options import RefinementOptions
+from drake_lfd.planning.refinement_tube import shape_deviation
 from drake_lfd.planning.plain_optimizer import plain_plan
+from drake_lfd.robot.trajectory_optimization import OptimizationScene, SolverBudget, TrajectoryLimits
 from drake_lfd.robot.workcell import Workcell
 import drake_lfd.planning.refinement as refinement_module
+import drake_lfd.planning.refinement_tube as refinement_tube
 
 SIMS = scenarios_directory()
 
@@ -296,8 +293,8 @@ def test_the_tube_is_sampled_evenly_in_s_and_along_the_arc_length(transferring):
     composed, _, _ = transferring
     # Evenly in s, and evenly along the composed path (where a span is passed quickly for
     # its length, samples evenly in s leave the path room to stray between them).
-    reference = refinement_module._Reference(composed.timed)
-    bounds = refinement_module._tube_bounds(reference, RefinementOptions(tube_samples=5))
+    reference = refinement_tube._Reference(composed.timed)
+    bounds = refinement_tube._tube_bounds(reference, RefinementOptions(tube_samples=5))
     fractions = [b.s for b in bounds]
     assert len(fractions) == len(set(fractions)) and 5 < len(fractions) <= 10
     np.testing.assert_allclose(reference.evenly_along(5), [f for f in fractions if f not in

@@ -24,15 +24,13 @@ from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task, task_from_spec, task_spec_from_text
 from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.planner import plan_composition
-from drake_lfd.planning.refinement import (
-    OptimizationScene,
-    RefinementOptions,
-    allowed_deviations,
-    refine_plan,
-    tube_deviation,
-)
+from drake_lfd.planning.refinement import refine_plan
+from drake_lfd.planning.refinement_bounds import allowed_deviations
+from drake_lfd.planning.refinement_options import RefinementOptions
+from drake_lfd.planning.refinement_tube import tube_deviation
 from drake_lfd.robot.workcell import Workcell
 from drake_lfd.robot.kinematics import UR5eKinematics
+from drake_lfd.robot.trajectory_optimization import OptimizationScene
 from drake_lfd.robot.path_constraints import (
     allowed_deviation,
     constraint_rotation,

@@ -21,7 +21,8 @@ from drake_lfd.io.library import Library, library_features
 from drake_lfd.io.task_files import load_task
 from drake_lfd.planning.options import PlanningOptions
 from drake_lfd.planning.planner import plan_composition
-from drake_lfd.planning.refinement import OptimizationScene, refine_plan
+from drake_lfd.planning.refinement import refine_plan
+from drake_lfd.robot.trajectory_optimization import OptimizationScene
 from drake_lfd.robot.workcell import Workcell
 
 PAPER_TASKS = {"transferring": "paper5", "filling_pouring": "paper5", "assembling": "paper6"}

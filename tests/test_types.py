@@ -1,5 +1,5 @@
 """The annotations hold: mypy passes on the packages ``[tool.mypy]`` in pyproject.toml
-lists (core/ so far), so ``py.typed`` tells the truth there."""
+lists (core/ and planning/), so ``py.typed`` tells the truth there."""
 
 import subprocess
 import sys

@@ -25,12 +25,16 @@ import dataclasses
 import fractions
 import itertools
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.read_only_arrays import read_only_array
+
+if TYPE_CHECKING:
+    from drake_lfd.core.timing import TimingLimits
 
 __all__ = [
     "DEFAULT_ANGLE_GRID_DEG",
@@ -226,9 +230,8 @@ class Task:
     # The tool's shapes on tool0 (tuple of core.tool.ToolShape); None: the default
     # sized from X_tool0_E (core.tool.default_tool), () for no tool geometry.
     tool: tuple | None = None
-    # The task file's ``timing:`` block, checked: a core.timing.TimingLimits (None: the
-    # defaults).
-    timing: object = None
+    # The task file's ``timing:`` block, checked (None: the defaults).
+    timing: "TimingLimits | None" = None
     # The people in the cell (tuple of core.people.Person; () for none) and the task
     # file's ``collaboration:`` block, checked: a core.people.CollaborationParameters
     # (None: the defaults).
@@ -303,7 +306,7 @@ class ConcreteTask:
     variable_values: dict = dataclasses.field(default_factory=dict)  # name -> drawn value
     file: str | None = None
     tool: tuple | None = None  # as Task.tool
-    timing: object = None  # as Task.timing
+    timing: "TimingLimits | None" = None  # as Task.timing
     simulation: object = None  # as Task.simulation (the checker of drake_lfd.plan_task reads its margins)
     refinement: RefinementBounds | None = None  # as Task.refinement
 

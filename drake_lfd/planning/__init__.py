@@ -38,7 +38,16 @@ The modules:
 * ``random_tasks``: the paper's random training tasks and chained test tasks.
 * ``gym_env``: the MDP as a Gymnasium environment (optional extra).
 * ``refinement``: demonstration-guided trajectory optimization of a composed plan
-  (``--refine``).
+  (``--refine``): the run, from several starts, and its report.
+* ``refinement_options``: the refinement's settings (``RefinementOptions``).
+* ``refinement_bounds``: how far the task file lets the refinement move E from the
+  composed path, span by span.
+* ``refinement_tube``: the composed path at path fractions, deviations from it, and the
+  tube around the demonstrations in the program.
+* ``refinement_starts``: where the program starts, and the fixed choice among the
+  motions that pass.
+* ``refinement_check``: the check of a solved motion (sampled, followed, within the
+  bounds).
 * ``plain_optimizer``: the plain optimizer, the same program without the demonstrations'
   tube (the baseline the refinement is compared with).
 * ``replanning``: a plan on the simulation clock (``ScheduledPlan``), and replanning

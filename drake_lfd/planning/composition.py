@@ -128,15 +128,17 @@ class _EndSweep:
     allocating deltas ``low..k-1`` after each demo index (None before the first row)."""
 
     def __init__(self, k: int, demos: np.ndarray):
-        self.k, self.low, self.demos, self.suffix = k, k, demos, None
+        self.k, self.low, self.demos = k, k, demos
+        self.suffix: np.ndarray | None = None
 
     def finish(self, first_start: int) -> None:
         """Nothing more to build: no demonstration is left, or the span limit is reached."""
         self.low, self.demos, self.suffix = first_start, self.demos[:0], None
 
 
-def _keys_by_start(table: dict, num_cons: int) -> list[list[tuple[int, int]]]:
-    """``keys[j]``: the (k, d) of the table's entries starting at j, sorted."""
+def _keys_by_start(table: dict, num_cons: int) -> list[list[tuple[int, int]] | None]:
+    """``keys[j]``: the (k, d) of the table's entries starting at j, sorted (every row
+    built: no None, the type of ``CompositionProblem._row_keys``)."""
     keys: list[list[tuple[int, int]]] = [[] for _ in range(num_cons)]
     for j, k, d in table:
         keys[j].append((k, d))
@@ -247,7 +249,7 @@ class CompositionProblem:
         keep = self.library.lengths[sweep.demos] >= p
         if self.use_index and len(sweep.demos):
             short = np.linalg.norm(translations, axis=-1) < self.tolerances.min_translation_m
-            keep &= self.library.index.candidates(rotations, short).any(axis=0)[sweep.demos]
+            keep &= np.asarray(self.library.index.candidates(rotations, short).any(axis=0))[sweep.demos]
         self.stats.pairs += self.num_demos
         self.stats.dropped_earlier += self.num_demos - len(sweep.demos)
         self.stats.discarded_by_index += len(sweep.demos) - int(keep.sum())

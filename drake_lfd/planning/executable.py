@@ -39,6 +39,7 @@ import copy
 import dataclasses
 import math
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydrake.math import RigidTransform
@@ -47,6 +48,9 @@ from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
 from drake_lfd.planning.composition import CompositionProblem, Step
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.joint_path_records import Blocker, JointPath
+
+if TYPE_CHECKING:  # refusals imports this module
+    from drake_lfd.planning.refusals import PoseBlockers
 
 __all__ = ["MAX_SEARCH_ROUNDS", "MAX_START_BRANCHES", "InfeasibleSegment", "ExecutableSearch",
            "search_executable"]
@@ -118,8 +122,8 @@ def search_executable(
     max_starts: int = MAX_START_BRANCHES,
     refusal: Callable[[CompositionProblem], list[InfeasibleSegment]] | None = None,
     path_constraints: Sequence = (),
-    pose_blockers: Callable[[], object] | None = None,
-    step_poses: Callable[[Step, tuple], tuple] | None = None,
+    pose_blockers: Callable[[], PoseBlockers] | None = None,
+    step_poses: Callable[[Step, tuple], tuple[np.ndarray, Sequence[int]]] | None = None,
 ) -> ExecutableSearch:
     """Lazy search for an executable composition (see the module docstring).
 
@@ -183,11 +187,17 @@ def search_executable(
             first = search
         if not search.tried_a_start:
             break  # no composition even had this start branch to try
+    assert first is not None  # max_starts >= 1: the first start's search is kept
     return first
 
 
-def _search_from(problem, solve, compose, checker, demo_names, start_index, *, alternatives, max_rounds,
-                 refused=lambda problem: (), path_constraints=(), pose_blockers=None, step_poses=None):
+def _search_from(problem: CompositionProblem, solve: Callable[[CompositionProblem], list[Step] | None],
+                 compose: Callable[..., tuple], checker: JointPathChecker, demo_names: list[str], start_index: int,
+                 *, alternatives: Callable[[Step], list] | None, max_rounds: int,
+                 refused: Callable[[CompositionProblem], tuple[InfeasibleSegment, ...]] = lambda problem: (),
+                 path_constraints: Sequence = (), pose_blockers: PoseBlockers | None = None,
+                 step_poses: Callable[[Step, tuple], tuple[np.ndarray, Sequence[int]]] | None = None,
+                 ) -> ExecutableSearch:
     """The lazy search with the start fixed to branch ``start_index`` (see
     :func:`search_executable`)."""
     blocked: list[InfeasibleSegment] = []

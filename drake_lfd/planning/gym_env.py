@@ -63,6 +63,8 @@ class CompositionEnv(gymnasium.Env):
     """
 
     metadata = {"render_modes": []}
+    action_space: spaces.Discrete
+    observation_space: spaces.Box
 
     def __init__(self, features: Mapping[str, Feature], *, num_cons: int = 4, max_span: int = 3,
                  illegal_penalty: float = DEFAULT_PENALTY):
@@ -84,14 +86,16 @@ class CompositionEnv(gymnasium.Env):
 
     def _observation(self) -> np.ndarray:
         j, a = self.state
-        n = self.problem.num_cons
+        problem = self.problem
+        assert problem is not None  # reset() draws the episode's task before any observation
+        n = problem.num_cons
         observation = np.zeros(10, dtype=np.float32)
         observation[0] = min(n - 1 - j, 3) / 3.0
         observation[9] = j / (n - 1)
         if j < n - 1:
-            nxt = self.problem.candidate_poses[j + 1]
+            nxt = problem.candidate_poses[j + 1]
             relative = dual_quaternion_canonical(
-                dual_quaternion_relative(self.problem.candidate_poses[j][a], nxt[len(nxt) // 2]))
+                dual_quaternion_relative(problem.candidate_poses[j][a], nxt[len(nxt) // 2]))
             t = translation_from_dual_quaternion(relative)
             length = float(np.linalg.norm(t))
             observation[1:5] = relative[:4]

@@ -14,7 +14,8 @@ Not for: the refinement itself or its program (``refinement.py``,
 from __future__ import annotations
 
 from drake_lfd.planning.planner import PlanResult
-from drake_lfd.planning.refinement import RefinementOptions, _optimize
+from drake_lfd.planning.refinement import _optimize
+from drake_lfd.planning.refinement_options import RefinementOptions
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.optimization_scene import OptimizationScene
 

@@ -182,7 +182,7 @@ def uncovered_segments(problem: CompositionProblem) -> list[UncoveredSegment]:
 
 
 def _reachable_candidates(problem: CompositionProblem) -> list[list[int]]:
-    reachable = [set() for _ in range(problem.num_cons)]
+    reachable: list[set[int]] = [set() for _ in range(problem.num_cons)]
     reachable[0] = set(range(problem.num_candidates[0]))
     for j in range(problem.num_cons - 1):
         for a in sorted(reachable[j]):
@@ -264,7 +264,7 @@ def compose_plan(
     overrides: Mapping[int, tuple[int | None, float | None]] | None = None,
     per_step: list | None = None,
     mapping: Callable | None = None,
-) -> tuple[np.ndarray, list[int], np.ndarray, float, float]:
+) -> tuple[np.ndarray, list[int], np.ndarray, list[float], float, float]:
     """Maps each step's demo onto its span (see :func:`map_span_clear`) and joins them.
 
     ``overrides[i] = (first_index, twist)`` maps step ``i`` from another demo suffix
@@ -282,6 +282,7 @@ def compose_plan(
     n = problem.num_cons
     chosen = np.zeros((n, 3))
     chosen[0] = angles[0][steps[0].a_j]
+    pieces: list[np.ndarray]
     pieces, critical, costs = [], [0], []
     max_position, max_rotation = 0.0, 0.0
     overrides = overrides or {}
@@ -394,6 +395,7 @@ def plan_composition(
     def solve(problem: CompositionProblem):
         if planner == "exact":
             return plan_exact(problem)
+        assert policy is not None  # the q planner was refused above without one
         q_plan = plan_q(problem, policy, refine_episodes=refine_episodes, seed=seed)
         q_outcome.update(greedy_completed=q_plan.greedy_completed, fallback=q_plan.fallback)
         return q_plan.steps
@@ -444,7 +446,8 @@ def plan_composition(
                 feature_poses, span.allocation, task_poses, keep_out, floor_z, points_E, limit=limit))
         return twist_memo[key]
 
-    def compose(steps, overrides=None):
+    def compose(steps: list[Step], overrides: Mapping[int, tuple[int | None, float | None]] | None = None,
+                ) -> tuple[TimedPlan, np.ndarray, list[float], float, float, list[tuple[float, float]]]:
         overrides = dict(overrides or {})
         for index, step in enumerate(steps):
             first, twist = overrides.get(index, (None, None))
@@ -487,6 +490,7 @@ def plan_composition(
         return options[1:]  # the first is the default mapping
 
     names = list(features)
+    blocked: tuple[InfeasibleSegment, ...]
     joint_path, blocked, rounds = None, (), 0
     if checker is None:
         steps = solve(problem)
@@ -510,12 +514,14 @@ def plan_composition(
             greedy_completed=greedy_completed, fallback=fallback,
             refine_episodes=refined,
         )
+    assert composed is not None  # the steps found were composed
     timed, chosen, costs, max_position, max_rotation, per_step = composed
     timing_kind = "geometric"
     if joint_path is not None:
         # The executed timing: time-optimal along the checked joint path (if Toppra finds
         # none, the checked geometric pass stands: slower, at rest at every configuration).
         limits = timing if timing is not None else (task.timing or TimingLimits())
+        assert checker is not None  # a joint path comes from the checker's search
         try:
             timed, joint_path, _ = retime_plan(timed, joint_path, stops_of(task), checker.kinematics, limits)
             timing_kind = "time_optimal"

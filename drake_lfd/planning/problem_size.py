@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Mapping, Sequence
+from typing import Mapping, Sequence, Sized
 
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.tasks import DEFAULT_ANGLE_GRID_DEG, angle_grid_count
@@ -107,7 +107,7 @@ class ProblemSize:
 
 
 def _grid_of(task, con) -> float:
-    grid = getattr(con, "angle_grid_deg", None)
+    grid: float | None = getattr(con, "angle_grid_deg", None)
     if grid is None:
         grid = getattr(task, "angle_grid_deg", DEFAULT_ANGLE_GRID_DEG)
     return float(grid)
@@ -200,7 +200,7 @@ def _grid_advice(task, grid_deg, demo_deltas, num_demos, max_span, cost) -> str:
     return f"use angle_grid_deg: {suggestion:g} or coarser, or bound fewer angles"
 
 
-def check_problem_size(task, features: Mapping[str, object] | Sequence[object],
+def check_problem_size(task, features: Mapping[str, Sized] | Sequence[Sized],
                        max_span: int | None = None, cost: str = "paper") -> ProblemSize:
     """Refuses a planning problem too large to build, before anything is allocated.
 

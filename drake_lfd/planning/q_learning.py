@@ -136,6 +136,7 @@ class TrainingResult:
     def greedy_curve(self) -> np.ndarray:
         """Average return of the greedy policy (greedy probability 1, the paper's whole action set)
         after each episode, over the training tasks: the learning curve of Fig. 7."""
+        assert self.greedy_rewards is not None  # train() records them
         return self.greedy_rewards.mean(axis=1)
 
 
@@ -260,6 +261,7 @@ def _run_episode(mdp: CompositionMDP, values, parameters: QLearningParameters, r
             # The afterstate's value is that of its best legal continuation (a dead end: penalty).
             values.set(mdp, state, old + p.learning_rate * ((q.max() if legal else penalty) - old))
         if illegal:
+            assert illegal_keys is not None  # given with illegal_values, in training
             keys = illegal_keys(state)
             q = np.concatenate([q, [illegal_values.get(key, 0.0) for key in keys]])
         if len(q) == 0:
@@ -355,6 +357,7 @@ def greedy_walk(problem: CompositionProblem, policy: QPolicy, *, refine_episodes
     """
     parameters = policy.parameters
     mdp = CompositionMDP(problem, parameters.penalty)
+    values: _TaskValues | _GeneralValues
     if refine_episodes > 0:
         parameters = dataclasses.replace(parameters, discount=1.0)
         values = _TaskValues(policy)

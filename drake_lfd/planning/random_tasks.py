@@ -73,20 +73,22 @@ def chained_task(
         TRAINING_CUBE_CENTRE + rng.uniform(-0.25, 0.25, 3),
         _random_quaternion(rng),
     )
-    poses = [start]
+    chain = [start]
     used = []
     gaps = num_cons - 1
     while gaps > 0:
         run = 1 if gaps == 1 else int(rng.integers(1, 3))
         demo = names[int(rng.integers(len(names)))]
         demo_poses = features[demo].poses
+        if demo_poses is None:
+            raise ValueError(f"demonstration {demo!r} has no poses to chain")
         m = len(demo_poses)
         samples = [0, int(rng.integers(m // 3, 2 * m // 3)), m - 1] if run == 2 else [0, m - 1]
         relative = dual_quaternion_relative(demo_poses[0], demo_poses[samples])
-        poses.extend(dual_quaternion_multiply(poses[-1], relative[1:]))
+        chain.extend(dual_quaternion_multiply(chain[-1], relative[1:]))
         used.append(demo)
         gaps -= run
-    poses = np.array(poses)
+    poses = np.array(chain)
     if perturbation_deg > 0.0 or perturbation_m > 0.0:
         count = len(poses) - 1
         angles = np.radians(perturbation_deg) * rng.uniform(0.0, 1.0, count)

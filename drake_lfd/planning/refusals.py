@@ -77,6 +77,7 @@ def branch_violation(checker: JointPathChecker, q: np.ndarray, distance_m: float
     if shoulder < limits.shoulder_margin_m:
         return "singularity", "shoulder", describe_shoulder_shortfall(shoulder, limits.shoulder_margin_m)
     if distance_m < limits.clearance_m:
+        assert box is not None  # a distance below the clearance has its nearest box
         verb = describe_clearance_shortfall(box, distance_m, limits.clearance_m)
         return "collision", f"collision {robot_geometry} {box}", f"{robot_geometry} {verb}"
     return None
@@ -170,11 +171,12 @@ def _branch_changes(problem: CompositionProblem, found_branches: list[list]) -> 
     """The critical configuration where no branch is left that keeps the margins at every
     configuration before it (a path keeps its branch, :func:`branch_signature`), as one
     segment, or none."""
-    left = None  # branches that keep every margin at every configuration so far
+    left: set[tuple[int, int, int]] | None = None  # branches that keep every margin at every configuration so far
     for index, found in enumerate(found_branches):
         here = {signature for signature, violation in found if violation is None}
         kept = here if left is None else left & here
         if not kept:
+            assert left is not None  # every configuration has a branch that keeps the margins
             number = index + 1
             problems = [violation for signature, violation in found if signature in left and violation is not None]
             p = np.round(translation_from_dual_quaternion(problem.candidate_poses[index][0]), 3).tolist()
@@ -200,13 +202,14 @@ def _pan_only_rows(checker: JointPathChecker) -> np.ndarray:
     shoulder_lift axis), found by moving every other joint at two pans."""
     scene, rng = checker.scene, np.random.default_rng(0)
     lower, upper = checker.law.position_lower, checker.law.position_upper
-    same = None
+    same: np.ndarray | None = None
     for pan in (0.3, 2.1):
         samples = rng.uniform(np.maximum(lower, -np.pi), np.minimum(upper, np.pi), size=(4, 6))
         samples[:, 0] = pan
         distances = np.array([scene.signed_distances(q) for q in samples])  # (4, geometries, boxes)
         unchanged = np.all(np.abs(distances - distances[0]) < 1e-5, axis=(0, 2))  # FCL: ~1e-6 noise
         same = unchanged if same is None else same & unchanged
+    assert same is not None  # set at the first pan
     return np.flatnonzero(same)
 
 
@@ -479,6 +482,7 @@ class PoseBlockers:
     def _first_blocker(self, dual_quaternions, times, due: list[int], spans, first_span: int) -> Blocker | None:
         """The first blocker the poses (n, 8) at ``times`` show in ``spans`` (windows between
         the ``due`` indices; reported as spans ``first_span`` on)."""
+        assert self._branch is not None  # the callers return early without a branch
         root, wrist = self._branch
         poses = self._tool0_poses(dual_quaternions)
         pans = shoulder_pan_roots(poses)[:, root]
@@ -508,6 +512,7 @@ class PoseBlockers:
     def _pan_blocker(self, sweep: np.ndarray, times: np.ndarray, span: int) -> Blocker | None:
         """The blocker of a pan sweep (one span's pans and times) across a blocked cell."""
         sweeps = self._sweeps
+        assert sweeps is not None  # called only with the pan sweeps computed
         if not len(sweep) or np.isnan(sweep).any():
             return None
         sweep = np.unwrap(sweep)
@@ -527,6 +532,7 @@ class PoseBlockers:
 
     def _blocker(self, value: float, pan: float, time_s: float, span: int) -> Blocker:
         """The follow's wording for the pan-only shape nearest a box at ``pan``."""
+        assert self._sweeps is not None  # called only with the pan sweeps computed
         robot_id, box_id = self._sweeps.nearest_pair(pan)
         names = self._checker.scene.geometry
         what = names.describe(box_id)

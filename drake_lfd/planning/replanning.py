@@ -33,7 +33,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
-from pydrake.trajectories import PiecewisePose
+from pydrake.trajectories import PiecewisePose, Trajectory
 
 from drake_lfd.core.features import Feature
 from drake_lfd.core.tasks import ConcreteCriticalConfiguration, ConcreteTask
@@ -77,6 +77,11 @@ class ScheduledPlan:
     revision: int = 0
     rejected: PlanResult | None = None
     inputs: tuple = ()
+    # Set by __post_init__ and _built, not arguments: the pose trajectory and its
+    # derivative, and the plan's duration.
+    _trajectory: PiecewisePose | None = dataclasses.field(default=None, init=False, repr=False, compare=False)
+    _velocity: Trajectory | None = dataclasses.field(default=None, init=False, repr=False, compare=False)
+    _duration_s: float = dataclasses.field(default=0.0, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         # The pose trajectory and its derivative are built when first asked for (a cost
@@ -103,7 +108,7 @@ class ScheduledPlan:
         """The pose trajectory of E in W over plan time (None for a request)."""
         return self._built()[0]
 
-    def _built(self) -> tuple:
+    def _built(self) -> tuple[PiecewisePose | None, Trajectory | None]:
         """The pose trajectory and its derivative, built on first use (both None for a
         request)."""
         if self._trajectory is None and self.result.timed is not None:
@@ -128,7 +133,9 @@ class ScheduledPlan:
 
     def X_WE_desired(self, t: float) -> RigidTransform:
         """Desired pose of E at simulation time ``t`` (held before and after the plan)."""
-        return self.trajectory.GetPose(self.plan_time(t))
+        trajectory = self.trajectory
+        assert trajectory is not None  # asked of a plan, not of a demonstration request
+        return trajectory.GetPose(self.plan_time(t))
 
     def V_WE_desired(self, t: float) -> np.ndarray:
         """Desired spatial velocity ``[omega, v]`` of E at ``t``, shape (6,); zero
@@ -136,7 +143,9 @@ class ScheduledPlan:
         tau = t - self.start_time_s
         if tau <= 0.0 or tau >= self._duration_s:
             return np.zeros(6)
-        return self._built()[1].value(tau)[:, 0]
+        velocity = self._built()[1]
+        assert velocity is not None  # a plan (its duration is positive), not a request
+        return velocity.value(tau)[:, 0]
 
 
 def task_fingerprint(task: ConcreteTask) -> bytes:
@@ -223,6 +232,7 @@ def replan(
     if not old.planned:
         result = plan(new_task)
         return ScheduledPlan(result, time_s, task_digest, library_revision, current.revision + 1)
+    assert old.timed is not None  # a plan has its motion
     cons_old, cons_new = old.task.critical_configurations, new_task.critical_configurations
     n = len(cons_new)
     if len(cons_old) != n:
@@ -245,7 +255,9 @@ def replan(
         remainder = (start,) + tuple(cons_new[heading + 1:])
     else:
         cut_time = current.plan_time(time_s)
-        start = _fixed_con_at(current.trajectory.GetPose(cut_time), grid)
+        trajectory = current.trajectory
+        assert trajectory is not None  # as old.timed
+        start = _fixed_con_at(trajectory.GetPose(cut_time), grid)
         kept = heading
         remainder = (start,) + tuple(cons_new[heading:])
     # The sub-task's con numbers start at the configuration it starts from.
@@ -255,6 +267,7 @@ def replan(
     if not sub.planned:
         return dataclasses.replace(current, task_fingerprint=task_digest, library_revision=library_revision,
                                    rejected=sub)
+    assert sub.timed is not None  # planned
     timed = splice_timed_plans(old.timed, cut_time, sub.timed, first_critical_kept=kept)
     # The sub-plan's con numbers shift by the configurations kept from the old plan.
     shift = kept - 1

@@ -20,7 +20,7 @@ Not for: the learning rule itself (``q_learning.py``), policy files
 from __future__ import annotations
 
 import hashlib
-from typing import Callable, Mapping
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -107,7 +107,7 @@ def train_on_random_tasks(
     seed: int = 0,
     warm_start: QPolicy | None = None,
     parameters: QLearningParameters | None = None,
-    extra_problems: list[CompositionProblem] = (),
+    extra_problems: Sequence[CompositionProblem] = (),
     progress: Callable[[int, int], None] | None = None,
     after_episode: Callable[[int, QPolicy], None] | None = None,
 ) -> TrainingResult:

@@ -5,7 +5,7 @@ A path constraint (:class:`~drake_lfd.core.tasks.PathConstraint`) keeps the tool
 orientation within ``tolerance_rad`` of ``euler_zyx`` from one critical configuration to
 another (a cup carried upright, a part pulled straight out of a fixture). Three places
 read one: the joint-path check at plan time (``joint_path.py``), refinement's check of its
-motion (``planning/refinement.py``) and the judgement of a closed-loop run
+motion (``planning/refinement_check.py``) and the judgement of a closed-loop run
 (``diagrams/judging.py``). They share this module's measure: the angle of
 ``R_target^T R_WE``, from the sine and cosine of the rotation (accurate near zero, where
 an arc cosine is not).
@@ -17,7 +17,7 @@ largest such excess seen on the paper's transferring trials. A run is judged aga
 tolerance itself.
 
 Not for: following a plan (``joint_path.py``), the refinement program's own bounds
-(``planning/refinement.py``).
+(``planning/refinement_bounds.py``).
 """
 
 from __future__ import annotations

@@ -47,12 +47,13 @@ for its wall time, a measurement: 0). Every assembling trial (a task
 without variables) asks the same programs; each worker solves them once.
 
 Constraints at path fractions hold at those samples only: callers sample densely and
-keep margins, and check the result (``planning/refinement.py`` runs the joint-path
+keep margins, and check the result (``planning/refinement_check.py`` runs the joint-path
 check on it). ``trajectory_sampling.py`` fits the guess to a path's samples and turns
 the solution into 10 ms samples, with every target on a sample and the tool speed
 bounded.
 
-Not for: choosing targets, tubes or seeds from a plan (``planning/refinement.py``),
+Not for: choosing targets, tubes or seeds from a plan (``planning/refinement.py``,
+``refinement_tube.py``, ``refinement_starts.py``),
 following a plan with the controller's law (``joint_path.py``).
 """
 

@@ -101,7 +101,7 @@ def _slowed_clock(scene: OptimizationScene, trajectory: BsplineTrajectory, due: 
 def sample_trajectory(
     scene: OptimizationScene,
     trajectory: BsplineTrajectory,
-    fractions: Sequence[float],
+    fractions: Sequence[float] | np.ndarray,
     *,
     time_step: float,
     tool_speed_m_s: float,

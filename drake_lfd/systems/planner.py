@@ -152,7 +152,8 @@ class PlannerSystem(LeafSystem):
                                   checker=self._checker)
         if not (self._options.refine and result.planned):
             return result
-        from drake_lfd.planning.refinement import OptimizationScene, refine_plan
+        from drake_lfd.planning.refinement import refine_plan
+        from drake_lfd.robot.optimization_scene import OptimizationScene
 
         if self._refinement_scene is None:
             self._refinement_scene = OptimizationScene(self._checker.scene.workcell)
