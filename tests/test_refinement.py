@@ -157,7 +157,7 @@ def _spying_on_checks(monkeypatch, refuse=()):
     """Records every motion the refinement checks (its solve and its check), refusing
     the checks numbered in ``refuse`` (from 0) as a failed check would."""
     checked_motions = []
-    check_motion = refinement_module._check_motion
+    check_motion = refinement_module.check_motion
 
     def spy(result, checker, scene, solved, *args, **kwargs):
         checked = check_motion(result, checker, scene, solved, *args, **kwargs)
@@ -166,7 +166,7 @@ def _spying_on_checks(monkeypatch, refuse=()):
         checked_motions.append((solved, checked))
         return checked
 
-    monkeypatch.setattr(refinement_module, "_check_motion", spy)
+    monkeypatch.setattr(refinement_module, "check_motion", spy)
     return checked_motions
 
 
@@ -293,8 +293,8 @@ def test_the_tube_is_sampled_evenly_in_s_and_along_the_arc_length(transferring):
     composed, _, _ = transferring
     # Evenly in s, and evenly along the composed path (where a span is passed quickly for
     # its length, samples evenly in s leave the path room to stray between them).
-    reference = refinement_tube._Reference(composed.timed)
-    bounds = refinement_tube._tube_bounds(reference, RefinementOptions(tube_samples=5))
+    reference = refinement_tube.ComposedPathReference(composed.timed)
+    bounds = refinement_tube.tube_bounds(reference, RefinementOptions(tube_samples=5))
     fractions = [b.s for b in bounds]
     assert len(fractions) == len(set(fractions)) and 5 < len(fractions) <= 10
     np.testing.assert_allclose(reference.evenly_along(5), [f for f in fractions if f not in

@@ -243,7 +243,7 @@ def test_a_refined_motion_that_breaks_a_path_constraint_is_refused(tmp_path, mon
         R = RotationMatrix(constraint_rotation(constraint)).multiply(RotationMatrix.MakeXRotation(math.radians(8)))
         return [PoseBound(float(0.5 * (fractions[5] + fractions[6])), R_WE=R, angle_rad=math.radians(1))]
 
-    monkeypatch.setattr(refinement_module, "_path_constraint_bounds", turned)
+    monkeypatch.setattr(refinement_module, "path_constraint_bounds", turned)
     result = refine_plan(composed, checker, scene=OptimizationScene(workcell))
     report = result.refinement
     assert report.status == "failed"

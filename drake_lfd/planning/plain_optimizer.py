@@ -14,7 +14,7 @@ Not for: the refinement itself or its program (``refinement.py``,
 from __future__ import annotations
 
 from drake_lfd.planning.planner import PlanResult
-from drake_lfd.planning.refinement import _optimize
+from drake_lfd.planning.refinement import optimize_plan
 from drake_lfd.planning.refinement_options import RefinementOptions
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.optimization_scene import OptimizationScene
@@ -27,4 +27,4 @@ def plain_plan(result: PlanResult, checker: JointPathChecker, *, scene: Optimiza
     """The plain optimizer's plan, like :func:`refine_plan` but without the tube, from
     straight joint-space lines between ``result``'s configurations at its critical
     configurations (pinned at the same path fractions)."""
-    return _optimize(result, checker, scene, options, "plain")
+    return optimize_plan(result, checker, scene, options, "plain")

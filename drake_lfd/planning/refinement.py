@@ -26,8 +26,8 @@ report says why.
 
 Which local solution SNOPT reaches depends on where it starts, and from one start on the
 last bits of the plan; so the tube program runs from several deterministic starts
-(``refinement_starts._starts``) and the plan takes a fixed choice among the motions
-that pass (``refinement_starts._choice``), with a small path-energy cost that makes the
+(``refinement_starts.start_guesses``) and the plan takes a fixed choice among the motions
+that pass (``refinement_starts.best_start``), with a small path-energy cost that makes the
 minimum of each start unique where the duration alone leaves the shape free. The solve
 is bounded by SNOPT's iteration counts
 (:class:`~drake_lfd.robot.trajectory_optimization.SolverBudget`) per solve and a fixed
@@ -64,26 +64,26 @@ import numpy as np
 
 from drake_lfd.core.timing import TimingLimits
 from drake_lfd.planning.planner import PlanResult
-from drake_lfd.planning.refinement_bounds import _allowed, _path_constraint_bounds
-from drake_lfd.planning.refinement_check import _check_motion, _Checked, _with_iterate
+from drake_lfd.planning.refinement_bounds import allowed_at_fractions, path_constraint_bounds
+from drake_lfd.planning.refinement_check import check_motion, CheckedMotion, with_iterate
 from drake_lfd.planning.refinement_options import RefinementOptions
 from drake_lfd.planning.refinement_starts import (
-    _START_NAMES,
-    _choice,
-    _duration_guess,
-    _fractions_by_joint_arc_length,
-    _in_path_fraction,
-    _starts,
-    _through_critical_configurations,
+    START_NAMES,
+    best_start,
+    duration_guess,
+    fractions_by_joint_arc_length,
+    in_path_fraction,
+    start_guesses,
+    through_critical_configurations,
 )
-from drake_lfd.planning.refinement_tube import _Reference, _tube_bounds
+from drake_lfd.planning.refinement_tube import ComposedPathReference, tube_bounds
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.optimization_records import OptimizedTrajectory, PoseTarget, TrajectoryLimits
 from drake_lfd.robot.optimization_scene import OptimizationScene
 from drake_lfd.robot.trajectory_optimization import optimize_joint_trajectory
 from drake_lfd.robot.trajectory_sampling import fit_bspline
 
-__all__ = ["RefinementReport", "refine_plan"]
+__all__ = ["RefinementReport", "refine_plan", "optimize_plan"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,7 +172,7 @@ class RefinementReport:
         return document
 
 
-def _optimize(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene | None,
+def optimize_plan(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene | None,
               options: RefinementOptions, method: str) -> PlanResult:
     start = time.perf_counter()
     unrefined = result.timed.duration if result.timed is not None else math.nan
@@ -188,7 +188,7 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     timed, path = result.timed, result.joint_path
     assert timed is not None  # a planned result has its timed plan
     scene = OptimizationScene(checker.scene.workcell) if scene is None else scene
-    reference = _Reference(timed)
+    reference = ComposedPathReference(timed)
     fractions = reference.fractions
     dt = checker.time_step
     # The composed joint path at path fractions (its samples after the plan's end are the settling).
@@ -196,11 +196,11 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     q_path = path.q[within]
     q_goal = path.q[min(int(round(timed.duration / dt)), len(path.q) - 1)]
     q_path[-1] = q_goal
-    s_path = _fractions_by_joint_arc_length(path.t[within], q_path, [timed.times[i] for i in timed.critical_indices],
+    s_path = fractions_by_joint_arc_length(path.t[within], q_path, [timed.times[i] for i in timed.critical_indices],
                                             fractions)
-    path_bounds = _path_constraint_bounds(result, fractions, options)
-    allowed = _allowed(result.task, fractions, options)
-    bounds = path_bounds + (_tube_bounds(reference, options, allowed) if method == "refine" else [])
+    path_bounds = path_constraint_bounds(result, fractions, options)
+    allowed = allowed_at_fractions(result.task, fractions, options)
+    bounds = path_bounds + (tube_bounds(reference, options, allowed) if method == "refine" else [])
     # Each inner critical configuration's configuration on the composed joint path (the
     # pass-speed bound is linearized there).
     q_due = [q_path[min(int(np.searchsorted(s_path, f)), len(q_path) - 1)] for f in fractions[1:-1]]
@@ -212,7 +212,7 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
                                                           clearance_m=options.clearance_m)
     count = options.num_control_points or 6 + 3 * (len(fractions) - 1)
     pins = list(zip(fractions[1:-1], q_due))
-    lines = _through_critical_configurations(fractions, q_path[0], q_due, q_goal)
+    lines = through_critical_configurations(fractions, q_path[0], q_due, q_goal)
     solve_time = 0.0
 
     def solve(guess, duration, program_bounds, program_limits=None):
@@ -229,31 +229,31 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
     # Up to two rounds, the second with 1.5 times the control points (a spline too stiff
     # for the tube is a usual cause of an infeasible program; and a different program is
     # a fresh chance where SNOPT ended in poor local solutions). In each, the program from
-    # every start of ``_starts`` (a motion through the clearance once more, with more
-    # clearance), then the choice among the motions that pass every check (``_choice``).
+    # every start of ``start_guesses`` (a motion through the clearance once more, with more
+    # clearance), then the choice among the motions that pass every check (``best_start``).
     # A fixed number of solves at most, each within the iteration budget, so the work
     # stays bounded and the answer deterministic.
     rounds = (count,) if options.num_control_points else (count, count + count // 2)
     repair_limits = dataclasses.replace(limits, clearance_m=limits.clearance_m + options.repair_clearance_m)
     for attempt in rounds:
-        failures: list[tuple[str, str, _Checked | None]] = []
-        passed: list[tuple[OptimizedTrajectory, _Checked]] = []
+        failures: list[tuple[str, str, CheckedMotion | None]] = []
+        passed: list[tuple[OptimizedTrajectory, CheckedMotion]] = []
         line_guess = fit_bspline(*lines, attempt, rest_ends=True, pins=pins)
         composed = functools.partial(fit_bspline, s_path, q_path, attempt, rest_ends=True, pins=pins)
-        for label, guess, duration, first in _starts(method, line_guess, composed, limits, solve, path_bounds,
+        for label, guess, duration, first in start_guesses(method, line_guess, composed, limits, solve, path_bounds,
                                                      options.starts, options.fallback_starts, passed):
             solved = first if guess is None else solve(guess, duration, bounds)
             checked = None
             if solved.trajectory is not None and not solved.safety_stopped:
                 work["budget_spent"] = solved.budget_spent
-                checked = _check_motion(result, checker, scene, solved, allowed, limits, options, method)
+                checked = check_motion(result, checker, scene, solved, allowed, limits, options, method)
                 if method == "refine" and options.repair_clearance_m > 0 and \
                         (checked.reason or "").startswith("check: collision"):
                     # Through the clearance where the program does not look (between its
                     # samples, or where the followed path lags the motion).
-                    repaired = solve(*_in_path_fraction(solved.trajectory), bounds, repair_limits)
+                    repaired = solve(*in_path_fraction(solved.trajectory), bounds, repair_limits)
                     if repaired.trajectory is not None and not repaired.safety_stopped:
-                        again = _check_motion(result, checker, scene, repaired, allowed, limits, options, method)
+                        again = check_motion(result, checker, scene, repaired, allowed, limits, options, method)
                         if again.reason is None:
                             solved, checked = repaired, again
                     elif repaired.safety_stopped:
@@ -265,16 +265,16 @@ def _optimize(result: PlanResult, checker: JointPathChecker, scene: Optimization
             elif checked.reason is None:
                 passed.append((solved, checked))
             else:
-                failures.append((label, _with_iterate(checked.reason, solved), checked))
+                failures.append((label, with_iterate(checked.reason, solved), checked))
         if passed:
-            solved, checked = _choice(passed, options)
+            solved, checked = best_start(passed, options)
             work["budget_spent"] = solved.budget_spent
             return dataclasses.replace(result, timed=checked.plan, joint_path=checked.followed,
                                        refinement=report("refined", "", solve_time, checked.plan.duration,
                                                          checked.position, checked.rotation, checked.fractions))
     # The last round's failures, in the starts' order: the first as it is, each other one
     # with the start it comes from.
-    reason = "; ".join([failures[0][1]] + [f"{_START_NAMES[label]}: {text}" for label, text, _ in failures[1:]])
+    reason = "; ".join([failures[0][1]] + [f"{START_NAMES[label]}: {text}" for label, text, _ in failures[1:]])
     checked = failures[0][2]
     if checked is None:
         return dataclasses.replace(result, refinement=report("failed", reason, solve_time))
@@ -299,4 +299,4 @@ def refine_plan(result: PlanResult, checker: JointPathChecker, *, scene: Optimiz
         to reuse it across plans of the same work cell).
     options : RefinementOptions
     """
-    return _optimize(result, checker, scene, options, "refine")
+    return optimize_plan(result, checker, scene, options, "refine")

@@ -21,10 +21,10 @@ from drake_lfd.planning.refinement_options import RefinementOptions
 from drake_lfd.robot.path_constraints import allowed_deviation, constraint_rotation, describe_constraint
 from drake_lfd.robot.optimization_records import PoseBound
 
-__all__ = ["allowed_deviations"]
+__all__ = ["allowed_deviations", "AllowedDeviations", "allowed_at_fractions", "path_constraint_bounds"]
 
 
-def _path_constraint_bounds(result: PlanResult, fractions: np.ndarray, options: RefinementOptions) -> list[PoseBound]:
+def path_constraint_bounds(result: PlanResult, fractions: np.ndarray, options: RefinementOptions) -> list[PoseBound]:
     """Each path constraint at ``path_constraint_samples`` fractions per span it covers:
     within what the check allows (:func:`~drake_lfd.robot.path_constraints.allowed_deviation`)
     less ``path_constraint_margin_rad``, but at least half of that."""
@@ -42,7 +42,7 @@ def _path_constraint_bounds(result: PlanResult, fractions: np.ndarray, options: 
 
 
 @dataclasses.dataclass(frozen=True)
-class _Allowed:
+class AllowedDeviations:
     """How far the refined motion may move E from the composed path: one distance and
     one angle per span (con_j to con_j+1, arrays (n - 1,)), and which bound of the task
     sets each (``sources``: (position, rotation) names per span)."""
@@ -85,12 +85,12 @@ def allowed_deviations(task, options: RefinementOptions | None = None) -> tuple[
     """How far refinement may move E from the composed path over each span of ``task``
     (con_j to con_j+1): distances and angles (n - 1,), from the task's ``refinement``
     block, its path constraints and ``options``' tube (docs/task_files.rst)."""
-    allowed = _allowed(task, np.linspace(0.0, 1.0, len(task.critical_configurations)),
+    allowed = allowed_at_fractions(task, np.linspace(0.0, 1.0, len(task.critical_configurations)),
                        options or RefinementOptions())
     return allowed.position_m, allowed.rotation_rad
 
 
-def _allowed(task, fractions: np.ndarray, options: RefinementOptions) -> _Allowed:
+def allowed_at_fractions(task, fractions: np.ndarray, options: RefinementOptions) -> AllowedDeviations:
     """The task file's bounds on the refinement (docs/task_files.rst): ``refinement.max_deviation``
     for the whole task (absent fields: ``options``' tube), replaced over a span by each
     entry of ``refinement.spans`` that covers it (the tighter of several), then tightened by
@@ -122,5 +122,5 @@ def _allowed(task, fractions: np.ndarray, options: RefinementOptions) -> _Allowe
             for j in range(constraint.con_from - 1, constraint.con_to - 1):
                 if value is not None and value < values[axis][j]:
                     values[axis][j], sources[axis][j] = value, describe_constraint(constraint)
-    return _Allowed(np.asarray(fractions, dtype=float), values[0], values[1],
+    return AllowedDeviations(np.asarray(fractions, dtype=float), values[0], values[1],
                     tuple(zip(sources[0], sources[1])))

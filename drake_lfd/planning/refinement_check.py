@@ -1,7 +1,7 @@
 """The check of a solved motion: sampled at the controller's period, timed as a
 :class:`~drake_lfd.core.timing.TimedPlan`, followed by the
 :class:`~drake_lfd.robot.joint_path.JointPathChecker` holding the task's path
-constraints (:func:`_check_motion`), and checked: every critical configuration met,
+constraints (:func:`check_motion`), and checked: every critical configuration met,
 executable, within the task's bounds on the deviation from the composed path span by
 span (:func:`_excess` words where it goes furthest beyond), shorter than the composed
 plan. A motion that fails says why; a refined plan is only ever one that passes.
@@ -20,19 +20,19 @@ import numpy as np
 from drake_lfd.core.pose_conversions import dual_quaternion_from_matrices
 from drake_lfd.core.timing import TimedPlan
 from drake_lfd.planning.planner import PlanResult
-from drake_lfd.planning.refinement_bounds import _Allowed
+from drake_lfd.planning.refinement_bounds import AllowedDeviations
 from drake_lfd.planning.refinement_options import RefinementOptions
-from drake_lfd.planning.refinement_tube import _deviations, _Reference, _span_deviations
+from drake_lfd.planning.refinement_tube import deviations_from_reference, ComposedPathReference, span_deviations
 from drake_lfd.robot.joint_path import JointPathChecker
 from drake_lfd.robot.optimization_records import OptimizedTrajectory, TrajectoryLimits
 from drake_lfd.robot.optimization_scene import OptimizationScene
 from drake_lfd.robot.trajectory_sampling import sample_trajectory
 
-__all__: list[str] = []  # private to the refinement (refinement.py runs it)
+__all__ = ["check_motion", "CheckedMotion", "with_iterate"]  # what refinement.py runs
 
 
 @dataclasses.dataclass(frozen=True)
-class _Checked:
+class CheckedMotion:
     """A solved motion, sampled, followed and checked: ``reason`` None when it passes."""
 
     reason: str | None
@@ -43,9 +43,9 @@ class _Checked:
     fractions: np.ndarray | None = None
 
 
-def _check_motion(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene, solved: OptimizedTrajectory,
-                  allowed: _Allowed, limits: TrajectoryLimits, options: RefinementOptions,
-                  method: str) -> _Checked:
+def check_motion(result: PlanResult, checker: JointPathChecker, scene: OptimizationScene, solved: OptimizedTrajectory,
+                  allowed: AllowedDeviations, limits: TrajectoryLimits, options: RefinementOptions,
+                  method: str) -> CheckedMotion:
     """Samples the solver's motion at the controller's period (module docstring), follows
     it with ``checker`` holding the task's path constraints (as the search does) and
     checks it: executable, every critical configuration within ``check_fraction`` of the
@@ -64,7 +64,7 @@ def _check_motion(result: PlanResult, checker: JointPathChecker, scene: Optimiza
     duration = plan.duration
 
     def checked(reason, position=math.nan, rotation=math.nan):
-        return _Checked(reason, plan, followed, position, rotation, s_samples)
+        return CheckedMotion(reason, plan, followed, position, rotation, s_samples)
 
     # The motion's own critical configurations must be the composed plan's, within the
     # program's tolerances (with room for SNOPT's feasibility tolerance): every later
@@ -95,12 +95,12 @@ def _check_motion(result: PlanResult, checker: JointPathChecker, scene: Optimiza
                            f"success tolerances)")
     X_followed = [scene.X_WE(x) for x in followed.q]
     s_followed = np.interp(np.minimum(followed.t, duration), t, s_samples)
-    deviation = _deviations(_Reference(timed), s_followed, X_followed)
+    deviation = deviations_from_reference(ComposedPathReference(timed), s_followed, X_followed)
     position, rotation = float(deviation[0].max(initial=0.0)), float(deviation[1].max(initial=0.0))
     if method == "refine":
         shaped = allowed.by_shape[allowed.span_of(s_followed)]
         if shaped.any():
-            held = _span_deviations(timed, allowed.span_of(s_followed[shaped]), [x for x, k in zip(X_followed, shaped) if k])
+            held = span_deviations(timed, allowed.span_of(s_followed[shaped]), [x for x, k in zip(X_followed, shaped) if k])
             deviation = (deviation[0].copy(), deviation[1].copy())
             deviation[0][shaped] = held[0]
         excess = _excess(allowed, s_followed, *deviation)
@@ -111,7 +111,7 @@ def _check_motion(result: PlanResult, checker: JointPathChecker, scene: Optimiza
     return checked(None, position, rotation)
 
 
-def _excess(allowed: _Allowed, s: np.ndarray, position: np.ndarray, rotation: np.ndarray) -> str | None:
+def _excess(allowed: AllowedDeviations, s: np.ndarray, position: np.ndarray, rotation: np.ndarray) -> str | None:
     """Where the followed motion (at path fractions ``s``, its deviations ``position`` and
     ``rotation`` from the composed path) goes furthest beyond the task's bound, relative
     to the bound, as a reason naming the span and the bound; None when it keeps every
@@ -135,7 +135,7 @@ def _excess(allowed: _Allowed, s: np.ndarray, position: np.ndarray, rotation: np
             f"{allowed.sources[j][axis]} allows {limit:g} {unit}")
 
 
-def _with_iterate(reason: str, solved: OptimizedTrajectory) -> str:
+def with_iterate(reason: str, solved: OptimizedTrajectory) -> str:
     """A failed check's reason, saying when the motion was SNOPT's last iterate."""
     if solved.budget_spent:
         return f"{reason}; SNOPT's last iterate at its {solved.status}"

@@ -107,7 +107,7 @@ class RefinementOptions:
         plan's last bits, which start the plan takes.
     starts, fallback_starts : tuple of str
         The tube program's starts, in order, and those tried only when none of them gives
-        a motion that passes (``refinement_starts._starts``).
+        a motion that passes (``refinement_starts.start_guesses``).
     energy_weight : float
         Weight of the path-energy cost beside the duration's in the tube program and
         the plain program that starts it (1e-3, in seconds per rad^2 of the control
@@ -117,7 +117,7 @@ class RefinementOptions:
         retimes differently.
     equal_duration : float
         Program durations within this fraction of the shortest are equal for the choice
-        among starts (``refinement_starts._choice``; 0.005).
+        among starts (``refinement_starts.best_start``; 0.005).
     """
 
     tube_position_m: float = DEFAULT_REFINEMENT_POSITION_M

@@ -1,8 +1,8 @@
 """Where the optimization program starts, and which of its motions the plan takes: the
 composed joint path at path fractions, straight joint-space lines through the critical
 configurations, a duration each guess keeps the bounds at, the starts in their fixed
-order (:func:`_starts`: the plain program's motion, the lines, the composed path as the
-fallback) and the fixed choice among the motions that pass (:func:`_choice`). Which
+order (:func:`start_guesses`: the plain program's motion, the lines, the composed path as the
+fallback) and the fixed choice among the motions that pass (:func:`best_start`). Which
 local solution SNOPT reaches from one start moves with the last bits of the plan; the
 choice among several starts far less (docs/method.rst, Several starts, one fixed
 choice).
@@ -22,10 +22,11 @@ from pydrake.trajectories import BsplineTrajectory
 from drake_lfd.planning.refinement_options import RefinementOptions
 from drake_lfd.robot.optimization_records import TrajectoryLimits
 
-__all__ = ["STARTS"]
+__all__ = ["STARTS", "START_NAMES", "start_guesses", "best_start", "duration_guess", "fractions_by_joint_arc_length",
+           "in_path_fraction", "through_critical_configurations"]
 
 
-def _fractions_by_joint_arc_length(t: np.ndarray, q: np.ndarray, due: list, fractions: np.ndarray) -> np.ndarray:
+def fractions_by_joint_arc_length(t: np.ndarray, q: np.ndarray, due: list, fractions: np.ndarray) -> np.ndarray:
     """Path fractions (m,) of the composed joint path's samples (times ``t`` (m,), joints
     ``q`` (m, 6)): each critical configuration at its fraction, and within each span
     by joint-space arc length (the time fraction where a span does not move). The
@@ -43,7 +44,7 @@ def _fractions_by_joint_arc_length(t: np.ndarray, q: np.ndarray, due: list, frac
     return np.clip(s, 0.0, 1.0)
 
 
-def _through_critical_configurations(fractions: np.ndarray, q_start: np.ndarray, q_due: list,
+def through_critical_configurations(fractions: np.ndarray, q_start: np.ndarray, q_due: list,
                                      q_goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The plain optimizer's guess: straight in joint space from each critical
     configuration to the next (the composed path's configurations there), at their
@@ -53,7 +54,7 @@ def _through_critical_configurations(fractions: np.ndarray, q_start: np.ndarray,
     return s, np.column_stack([np.interp(s, fractions, knots[:, j]) for j in range(knots.shape[1])])
 
 
-def _duration_guess(guess, limits: TrajectoryLimits) -> float:
+def duration_guess(guess, limits: TrajectoryLimits) -> float:
     """The shortest duration at which the guess ``q(s)`` keeps every joint within its
     speed and acceleration bounds (``|q'(s)| / T`` and ``|q''(s)| / T^2`` on 201 path
     fractions), at least 0.5 s: the guess starts within the bounds the convex hull
@@ -65,14 +66,14 @@ def _duration_guess(guess, limits: TrajectoryLimits) -> float:
     return max(dq / limits.joint_speed_rad_s, math.sqrt(ddq / limits.acceleration_rad_s2), 0.5)
 
 
-# How a failure reason names the start it comes from (``_starts``).
-_START_NAMES = {"plain motion": "from the plain program's motion", "composed": "from the composed path",
+# How a failure reason names the start it comes from (``start_guesses``).
+START_NAMES = {"plain motion": "from the plain program's motion", "composed": "from the composed path",
                 "lines": "from straight joint-space lines"}
-#: Every start the tube program knows (``_starts``).
-STARTS = tuple(_START_NAMES)
+#: Every start the tube program knows (``start_guesses``).
+STARTS = tuple(START_NAMES)
 
 
-def _starts(method: str, line_guess, composed_guess, limits: TrajectoryLimits, solve, path_bounds,
+def start_guesses(method: str, line_guess, composed_guess, limits: TrajectoryLimits, solve, path_bounds,
             starts=("plain motion", "lines"), fallback=("composed",), passed=()):
     """The program's starts, in order, as ``(label, guess, duration, None)``, or
     ``(label, None, None, answer)`` when the solve that makes a start gave no motion
@@ -86,32 +87,32 @@ def _starts(method: str, line_guess, composed_guess, limits: TrajectoryLimits, s
     with ``solve(guess, duration, path_bounds)``); ``lines``: ``line_guess`` itself;
     ``composed``: the composed joint path (``composed_guess()``). Which local solution
     SNOPT reaches from one start moves with the last bits of the plan; the choice among
-    several starts moves far less (``_choice``). From the composed path SNOPT lands in
+    several starts moves far less (``best_start``). From the composed path SNOPT lands in
     poor local solutions where the demonstrations detour, and where another start passed
     it was not the one chosen: it is the fallback, where neither of the others gives a
     motion that passes (docs/method.rst, Several starts, one fixed choice)."""
     if method == "plain":
-        yield "plain", line_guess, _duration_guess(line_guess, limits), None
+        yield "plain", line_guess, duration_guess(line_guess, limits), None
         return
     for label in tuple(starts) + tuple(fallback):
         if label in fallback and label not in starts and passed:
             return
         if label == "plain motion":
-            plain = solve(line_guess, _duration_guess(line_guess, limits), path_bounds)
+            plain = solve(line_guess, duration_guess(line_guess, limits), path_bounds)
             if plain.trajectory is None:
                 yield label, None, None, plain
             else:
-                yield (label,) + _in_path_fraction(plain.trajectory) + (None,)
+                yield (label,) + in_path_fraction(plain.trajectory) + (None,)
         elif label == "composed":
             guess = composed_guess()
-            yield label, guess, _duration_guess(guess, limits), None
+            yield label, guess, duration_guess(guess, limits), None
         elif label == "lines":
-            yield label, line_guess, _duration_guess(line_guess, limits), None
+            yield label, line_guess, duration_guess(line_guess, limits), None
         else:
             raise ValueError(f"unknown start {label!r} (known: {', '.join(STARTS)})")
 
 
-def _in_path_fraction(trajectory: BsplineTrajectory) -> tuple[BsplineTrajectory, float]:
+def in_path_fraction(trajectory: BsplineTrajectory) -> tuple[BsplineTrajectory, float]:
     """A solved ``q(t)`` as the guess ``q(s)``, ``s = t / T``, and its duration ``T``."""
     T = float(trajectory.end_time())
     basis = trajectory.basis()
@@ -119,7 +120,7 @@ def _in_path_fraction(trajectory: BsplineTrajectory) -> tuple[BsplineTrajectory,
                              trajectory.control_points()), T
 
 
-def _choice(passed: list, options: RefinementOptions) -> tuple:
+def best_start(passed: list, options: RefinementOptions) -> tuple:
     """The motion the plan takes among ``passed`` (``(solved, checked)`` in the starts'
     order, each passing every check): the first whose program duration is within
     ``equal_duration`` of the shortest.

@@ -1,5 +1,5 @@
 """The tube around the mapped demonstrations: the composed plan's SE(3) path as a function
-of the path fraction ``s`` (:class:`_Reference`, arc length within each span), a path's
+of the path fraction ``s`` (:class:`ComposedPathReference`, arc length within each span), a path's
 deviations from it (at matching path fractions, from a span's path as a shape, from the
 path as a set), and the tube's pose bounds in the program (E within the allowed
 deviation of the composed path at sampled path fractions).
@@ -14,14 +14,15 @@ import numpy as np
 from pydrake.trajectories import PiecewisePose
 
 from drake_lfd.core.timing import TimedPlan
-from drake_lfd.planning.refinement_bounds import _Allowed
+from drake_lfd.planning.refinement_bounds import AllowedDeviations
 from drake_lfd.planning.refinement_options import RefinementOptions
 from drake_lfd.robot.optimization_records import PoseBound
 
-__all__ = ["path_fractions_of", "tube_deviation", "shape_deviation"]
+__all__ = ["path_fractions_of", "tube_deviation", "shape_deviation", "ComposedPathReference", "deviations_from_reference",
+           "span_deviations", "tube_bounds"]
 
 
-class _Reference:
+class ComposedPathReference:
     """The composed plan's SE(3) path as a function of the path fraction ``s``: the
     critical configurations at their fractions ``t_i / T``; within each span, the pose
     at the same fraction of the span's arc length (translation plus 0.1 m per radian of
@@ -64,18 +65,18 @@ class _Reference:
 
 def path_fractions_of(plan: TimedPlan) -> np.ndarray:
     """The path fraction of each sample of a composed plan (by arc length within each
-    span, see :class:`_Reference`): the fractions the tube is defined at."""
-    return _Reference(plan).sample_fractions
+    span, see :class:`ComposedPathReference`): the fractions the tube is defined at."""
+    return ComposedPathReference(plan).sample_fractions
 
 
 def tube_deviation(reference_plan: TimedPlan, fractions: np.ndarray, X_WE: list) -> tuple[float, float]:
     """Largest distance and angle of the poses ``X_WE`` at path fractions ``fractions``
-    from ``reference_plan``'s path at the same fractions (see :class:`_Reference`)."""
-    position, rotation = _deviations(_Reference(reference_plan), fractions, X_WE)
+    from ``reference_plan``'s path at the same fractions (see :class:`ComposedPathReference`)."""
+    position, rotation = deviations_from_reference(ComposedPathReference(reference_plan), fractions, X_WE)
     return float(position.max(initial=0.0)), float(rotation.max(initial=0.0))
 
 
-def _deviations(reference: _Reference, fractions: np.ndarray, X_WE: list) -> tuple[np.ndarray, np.ndarray]:
+def deviations_from_reference(reference: ComposedPathReference, fractions: np.ndarray, X_WE: list) -> tuple[np.ndarray, np.ndarray]:
     """The distance and the angle (m,) of each pose of ``X_WE`` from the reference path at
     its path fraction."""
     position, rotation = np.zeros(len(X_WE)), np.zeros(len(X_WE))
@@ -89,7 +90,7 @@ def _deviations(reference: _Reference, fractions: np.ndarray, X_WE: list) -> tup
 def shape_deviation(reference_plan: TimedPlan, X_WE: list) -> tuple[float, float]:
     """How far a path's poses ``X_WE`` stray from ``reference_plan``'s path as a set:
     for each pose the nearest reference pose (by distance plus 0.1 m per radian, the
-    arc length's weighting of :class:`_Reference`; by position alone a twist in place
+    arc length's weighting of :class:`ComposedPathReference`; by position alone a twist in place
     would pair a pose with the wrong turn of it), and the largest distance and angle
     to it over the poses."""
     X_ref = reference_plan.X_WE_list()
@@ -99,12 +100,12 @@ def shape_deviation(reference_plan: TimedPlan, X_WE: list) -> tuple[float, float
     for X in X_WE:
         d = np.linalg.norm(p_ref - X.translation(), axis=1)
         angle = 2.0 * np.arccos(np.clip(np.abs(q_ref @ X.rotation().ToQuaternion().wxyz()), 0.0, 1.0))
-        k = int(np.argmin(d + _Reference.ROTATION_WEIGHT_M_PER_RAD * angle))
+        k = int(np.argmin(d + ComposedPathReference.ROTATION_WEIGHT_M_PER_RAD * angle))
         position, rotation = max(position, float(d[k])), max(rotation, float(angle[k]))
     return position, rotation
 
 
-def _span_deviations(composed: TimedPlan, spans: np.ndarray, X_WE: list) -> tuple[np.ndarray, np.ndarray]:
+def span_deviations(composed: TimedPlan, spans: np.ndarray, X_WE: list) -> tuple[np.ndarray, np.ndarray]:
     """The distance (m,) of each pose of ``X_WE`` from the composed plan's path over its
     span (``spans``, 0-based: the segments between the composed samples from one critical
     configuration to the next), and the angle to the composed rotation at the nearest
@@ -130,14 +131,14 @@ def _span_deviations(composed: TimedPlan, spans: np.ndarray, X_WE: list) -> tupl
     return position, rotation
 
 
-def _tube_bounds(reference: _Reference, options: RefinementOptions, allowed: _Allowed | None = None) -> list[PoseBound]:
+def tube_bounds(reference: ComposedPathReference, options: RefinementOptions, allowed: AllowedDeviations | None = None) -> list[PoseBound]:
     """The tube in the program: E within ``tube_margin`` of the allowed deviation from the
     composed path at ``tube_samples`` fractions evenly in ``s`` and as many evenly along
     its arc length, and at ``path_constraint_samples`` inner fractions of each span the
     task bounds more tightly than the whole (a short span with its own bound would
     otherwise hold hardly a sample)."""
     if allowed is None:
-        allowed = _Allowed(reference.fractions, np.full(len(reference.fractions) - 1, options.tube_position_m),
+        allowed = AllowedDeviations(reference.fractions, np.full(len(reference.fractions) - 1, options.tube_position_m),
                            np.full(len(reference.fractions) - 1, options.tube_rotation_rad), ())
     evenly_in_s = np.linspace(0.0, 1.0, options.tube_samples + 2)[1:-1]
     samples = np.union1d(evenly_in_s, reference.evenly_along(options.tube_samples))
