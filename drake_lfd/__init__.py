@@ -75,7 +75,7 @@ The main entry points are importable from the package itself (loaded on first us
 
 from __future__ import annotations
 
-import importlib
+from drake_lfd.core._lazy import lazy_exports
 
 __version__ = "0.1.0"
 
@@ -99,16 +99,4 @@ _ENTRY_POINTS = {
 }
 
 __all__ = ["__version__", *_ENTRY_POINTS]
-
-
-def __getattr__(name: str):
-    module = _ENTRY_POINTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'drake_lfd' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_ENTRY_POINTS))
+__getattr__, __dir__ = lazy_exports(globals(), _ENTRY_POINTS)
