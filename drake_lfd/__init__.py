@@ -70,7 +70,10 @@ The main entry points are importable from the package itself (loaded on first us
 ``import drake_lfd`` stays cheap): :func:`load_task`, :class:`Library`,
 :func:`library_features`, :func:`plan_task` (with :class:`PlanningOptions`; it plans as
 ``drake-lfd plan`` does), :func:`build_station`,
-:func:`build_pipeline`, :class:`ClosedLoopRunner`, :func:`run_trials`.
+:func:`build_pipeline`, :class:`ClosedLoopRunner`, :func:`run_trials`. Each sub-package
+exports the rest of what users need the same way (``from drake_lfd.systems import
+PlannerSystem``); docs/api.rst documents every exported name, and the modules that
+define them are internal.
 """
 
 from __future__ import annotations

@@ -47,8 +47,8 @@ The modules:
 It exports what research code calls to plan (``from drake_lfd.planning import
 PlanningOptions``): the options, ``plan_composition`` and its ``PlanResult``, the
 composition problem and its exact and Q-learning planners, training a policy, the
-paper's random tasks, the refinement and the plain optimizer, the Gymnasium environment
-and the scheduled plan. ``__all__`` lists them and docs/api.rst documents them; each
+paper's random tasks, the refinement and the plain optimizer, and the scheduled plan
+(the Gymnasium environment needs the ``gym`` extra, so it stays in ``gym_env``). ``__all__`` lists them and docs/api.rst documents them; each
 is loaded from its module on first use, so importing this package loads nothing else.
 Its other modules, and the names the exports leave out, are internal.
 """
@@ -77,7 +77,6 @@ _EXPORTS = {
     "RefinementOptions": "drake_lfd.planning.refinement",
     "refine_plan": "drake_lfd.planning.refinement",
     "plain_plan": "drake_lfd.planning.plain_optimizer",
-    "CompositionEnv": "drake_lfd.planning.gym_env",
 }
 
 __all__ = list(_EXPORTS)
