@@ -48,8 +48,9 @@ task and demonstration data types (``Task``, ``ConcreteTask``, ``draw_trial``,
 ``Demonstration``, ``Feature``), the dual-quaternion conversions, the similarity test
 (``allocate_features``), the timing limits, people in the cell, ``InputError`` and where
 the shipped scenarios live. ``__all__`` lists them and docs/api.rst documents them; each
-is loaded from its module on first use, so importing this package loads nothing else.
-Its other modules, and the names the exports leave out, are internal.
+is loaded from its module on first use, so importing the package loads none of the
+modules that define them. Its other modules, and the names the exports leave out, are
+internal.
 """
 
 from __future__ import annotations

@@ -24,9 +24,10 @@ The modules:
 It exports the trials and experiments users run from Python (``from
 drake_lfd.experiments import plan_task``): ``plan_task``, closed-loop trials and their
 summaries, the paper's Section 6, figures, the re-derivation of a verdict and
-pick-and-place task files. ``__all__`` lists them and docs/api.rst documents them;
-each is loaded from its module on first use, so importing this package loads nothing
-else. Its other modules, and the names the exports leave out, are internal.
+pick-and-place task files. ``__all__`` lists them and docs/api.rst documents them; each
+is loaded from its module on first use, so importing the package loads none of the
+modules that define them. Its other modules, and the names the exports leave out, are
+internal.
 """
 
 from __future__ import annotations

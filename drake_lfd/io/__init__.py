@@ -40,12 +40,12 @@ The modules:
   real UR5e (``drake-lfd export``).
 * ``urscript``: the URScript program that runs an exported trajectory.
 
-It exports the files users read and write (``from drake_lfd.io import load_task``):
-task files, the demonstration library, joint logs, guidance scripts, people files, the
+It exports the files users read and write (``from drake_lfd.io import load_task``): task
+files, the demonstration library, joint logs, guidance scripts, people files, the
 simulation configuration, a demonstration request in words, policy files and exported
 trajectories. ``__all__`` lists them and docs/api.rst documents them; each is loaded
-from its module on first use, so importing this package loads nothing else. Its other
-modules, and the names the exports leave out, are internal.
+from its module on first use, so importing the package loads none of the modules that
+define them. Its other modules, and the names the exports leave out, are internal.
 """
 
 from __future__ import annotations

@@ -48,9 +48,10 @@ It exports what research code calls to plan (``from drake_lfd.planning import
 PlanningOptions``): the options, ``plan_composition`` and its ``PlanResult``, the
 composition problem and its exact and Q-learning planners, training a policy, the
 paper's random tasks, the refinement and the plain optimizer, and the scheduled plan
-(the Gymnasium environment needs the ``gym`` extra, so it stays in ``gym_env``). ``__all__`` lists them and docs/api.rst documents them; each
-is loaded from its module on first use, so importing this package loads nothing else.
-Its other modules, and the names the exports leave out, are internal.
+(the Gymnasium environment needs the ``gym`` extra, so it stays in ``gym_env``).
+``__all__`` lists them and docs/api.rst documents them; each is loaded from its module
+on first use, so importing the package loads none of the modules that define them. Its
+other modules, and the names the exports leave out, are internal.
 """
 
 from __future__ import annotations

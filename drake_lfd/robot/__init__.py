@@ -38,8 +38,8 @@ It exports the UR5e and its work cell as users build and query them (``from
 drake_lfd.robot import UR5eKinematics``): the kinematics and joint names, the work cell
 and its geometry, the joint-path check and its result, the joint path's timing and the
 differential-IK law. ``__all__`` lists them and docs/api.rst documents them; each is
-loaded from its module on first use, so importing this package loads nothing else. Its
-other modules, and the names the exports leave out, are internal.
+loaded from its module on first use, so importing the package loads none of the modules
+that define them. Its other modules, and the names the exports leave out, are internal.
 """
 
 from __future__ import annotations
