@@ -70,12 +70,15 @@ The main entry points are importable from the package itself (loaded on first us
 ``import drake_lfd`` stays cheap): :func:`load_task`, :class:`Library`,
 :func:`library_features`, :func:`plan_task` (with :class:`PlanningOptions`; it plans as
 ``drake-lfd plan`` does), :func:`build_station`,
-:func:`build_pipeline`, :class:`ClosedLoopRunner`, :func:`run_trials`.
+:func:`build_pipeline`, :class:`ClosedLoopRunner`, :func:`run_trials`. Each sub-package
+exports the rest of what users need the same way (``from drake_lfd.systems import
+PlannerSystem``); docs/api.rst documents every exported name, and the modules that
+define them are internal.
 """
 
 from __future__ import annotations
 
-import importlib
+from drake_lfd.core._lazy import lazy_exports
 
 __version__ = "0.1.0"
 
@@ -99,16 +102,4 @@ _ENTRY_POINTS = {
 }
 
 __all__ = ["__version__", *_ENTRY_POINTS]
-
-
-def __getattr__(name: str):
-    module = _ENTRY_POINTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'drake_lfd' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_ENTRY_POINTS))
+__getattr__, __dir__ = lazy_exports(globals(), _ENTRY_POINTS)

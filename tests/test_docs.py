@@ -38,7 +38,9 @@ def test_sphinx_build_has_no_warnings(tmp_path):
     assert "WARNING" not in completed.stderr, completed.stderr
     for page in ("index", "method", "task_files", "guidance_scripts", "libraries", "cli", "api"):
         assert (out / f"{page}.html").is_file(), page
-    # The API reference is generated from the package, module by module.
+    # The API reference is generated from the package: a page per exported name, at the
+    # path users import it from, and a page per module.
+    assert (out / "_autosummary" / "drake_lfd.planning.PlanningOptions.html").is_file()
     similarity = out / "_autosummary" / "drake_lfd.core.similarity.html"
     assert similarity.is_file()
     assert "allocate" in similarity.read_text(encoding="utf-8")

@@ -8,6 +8,12 @@ Every ``import``, ``from ... import`` (relative ones resolved; inside functions 
 ``__import__("...")`` call with a literal name counts. A dynamic ``import_module`` with
 a computed name cannot be checked, so below the top layer it is refused; in the top
 layer every string naming a ``drake_lfd`` module is taken as a possible import.
+
+The one exception is the lazy-export helper (``drake_lfd.core._lazy``): a package hands
+``lazy_exports`` a table, exported name -> defining module, and the helper imports those
+modules by computed name. It refuses any module outside the package that hands it the
+table, and in a module that calls ``lazy_exports`` every string naming a ``drake_lfd``
+module counts as an import, so the tables are checked where they are written.
 """
 
 from __future__ import annotations
@@ -32,6 +38,11 @@ _MODULE_NAME = re.compile(r"^drake_lfd(\.[A-Za-z_][A-Za-z0-9_]*)+$")
 # libraries and the scripts that rebuild them); they are data, not layers of the code.
 DATA_PACKAGES = ("drake_lfd.models", "drake_lfd.sims")
 
+# The lazy-export helper: its computed import takes the modules of a table that the
+# calling package writes (and it refuses modules outside that package).
+LAZY_EXPORTS_MODULE = "drake_lfd.core._lazy"
+LAZY_EXPORTS_FUNCTION = "lazy_exports"
+
 
 def package_modules() -> dict[str, Path]:
     """Every module of the package's code: dotted name -> source file."""
@@ -49,22 +60,28 @@ def layer_of(module: str) -> str | None:
     return parts[1] if len(parts) > 1 else None
 
 
-def _is_import_call(node: ast.Call) -> bool:
+def _called_name(node: ast.Call) -> str | None:
     function = node.func
-    name = function.attr if isinstance(function, ast.Attribute) else getattr(function, "id", None)
-    return name in ("import_module", "__import__")
+    return function.attr if isinstance(function, ast.Attribute) else getattr(function, "id", None)
+
+
+def _is_import_call(node: ast.Call) -> bool:
+    return _called_name(node) in ("import_module", "__import__")
 
 
 def imported_modules(source: str, module: str, *, is_package: bool = False) -> list[tuple[int, str]]:
     """``(line, dotted name)`` of every ``drake_lfd`` module that ``source`` imports.
 
     ``from A import b`` yields ``A.b`` (b may be a module or a name in A; its layer is
-    A's either way). A computed ``import_module(...)`` yields ``(line, "?")``.
+    A's either way). A computed ``import_module(...)`` yields ``(line, "?")``. After a
+    computed import or a call of ``lazy_exports``, every string naming a ``drake_lfd``
+    module counts too.
     """
     package = module if is_package else module.rpartition(".")[0]
     tree = ast.parse(source)
     found = []
     dynamic = False
+    tables = False
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             found.extend((node.lineno, alias.name) for alias in node.names)
@@ -83,7 +100,9 @@ def imported_modules(source: str, module: str, *, is_package: bool = False) -> l
             else:
                 dynamic = True
                 found.append((node.lineno, "?"))
-    if dynamic:
+        elif isinstance(node, ast.Call) and _called_name(node) == LAZY_EXPORTS_FUNCTION:
+            tables = True
+    if dynamic or tables:
         found.extend(
             (node.lineno, node.value)
             for node in ast.walk(tree)
@@ -102,7 +121,7 @@ def violations(module: str, source: str, *, is_package: bool = False) -> list[st
     problems = []
     for line, name in imported_modules(source, module, is_package=is_package):
         if name == "?":
-            if own != LAYERS[-1]:
+            if own != LAYERS[-1] and module != LAZY_EXPORTS_MODULE:
                 problems.append(f"{module}:{line}: import_module with a computed name cannot be checked")
             continue
         target = layer_of(name)
@@ -140,6 +159,9 @@ def test_no_module_imports_from_a_higher_layer():
         ("drake_lfd.core.x", "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from drake_lfd.robot import kinematics\n", "robot"),
         ("drake_lfd.core.x", "import importlib\nname = 'drake_lfd.core.tasks'\nimportlib.import_module(name)\n", "computed"),
         ("drake_lfd.helpers", "import numpy\n", "not in a layer"),
+        ("drake_lfd.robot", "from drake_lfd.core._lazy import lazy_exports\n"
+         "__getattr__, __dir__ = lazy_exports(globals(), {'X': 'drake_lfd.systems.planner'})\n", "systems"),
+        ("drake_lfd.robot.x", "import importlib\nimportlib.import_module(__name__ + '.y')\n", "computed"),
     ],
 )
 def test_the_check_catches_upward_imports(module, source, words):

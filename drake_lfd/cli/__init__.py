@@ -22,8 +22,20 @@ The modules:
 * ``startup``: a command's heavy imports, with interrupts deferred.
 * ``argument_checks``: checks of command-line values shared by the commands.
 * ``progress``: a minimal text progress bar on stderr.
+
+It exports ``main`` (``drake_lfd.cli.main(["plan", ...])`` runs a command and returns its
+exit code; the ``drake-lfd`` script calls it), loaded from ``app`` on first use. Its
+modules are internal: the command line itself is documented in docs/cli.rst.
 """
 
-from drake_lfd.cli.app import main
+from __future__ import annotations
 
-__all__ = ["main"]
+from drake_lfd.core._lazy import lazy_exports
+
+# name -> module that defines it (imported on first access, PEP 562).
+_EXPORTS = {
+    "main": "drake_lfd.cli.app",
+}
+
+__all__ = list(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)

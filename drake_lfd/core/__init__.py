@@ -46,4 +46,57 @@ The modules:
 * ``exact_memo``: a bounded, process-local memo keyed by exact inputs.
 * ``read_only_arrays``: read-only numpy arrays for the frozen dataclasses passed between
   stages.
+* ``_lazy``: the exported names of ``drake_lfd`` and its sub-packages, each loaded on
+  first use (``lazy_exports``).
+
+It exports what users hold and compute with (``from drake_lfd.core import Task``): the
+task and demonstration data types (``Task``, ``ConcreteTask``, ``draw_trial``,
+``Demonstration``, ``Feature``), the dual-quaternion conversions, the similarity test
+(``allocate_features``), the timing limits, people in the cell, ``InputError`` and where
+the shipped scenarios live. ``__all__`` lists them and docs/api.rst documents them; each
+is loaded from its module on first use, so importing the package loads none of the
+modules that define them. Its other modules, and the names the exports leave out, are
+internal.
 """
+
+from __future__ import annotations
+
+from drake_lfd.core._lazy import lazy_exports
+
+# name -> module that defines it (imported on first access, PEP 562).
+_EXPORTS = {
+    "Demonstration": "drake_lfd.core.demonstrations",
+    "dual_quaternion_multiply": "drake_lfd.core.dual_quaternion",
+    "dual_quaternion_conjugate": "drake_lfd.core.dual_quaternion",
+    "dual_quaternion_from_translation_rotation": "drake_lfd.core.dual_quaternion",
+    "translation_rotation_from_dual_quaternion": "drake_lfd.core.dual_quaternion",
+    "dual_quaternion_from_rigid_transform": "drake_lfd.core.dual_quaternion",
+    "rigid_transform_from_dual_quaternion": "drake_lfd.core.dual_quaternion",
+    "dual_quaternion_from_euler_zyx": "drake_lfd.core.dual_quaternion",
+    "quaternion_from_axis_angle": "drake_lfd.core.dual_quaternion",
+    "dual_quaternion_sclerp": "drake_lfd.core.dual_quaternion",
+    "Feature": "drake_lfd.core.features",
+    "task_feature_from_poses": "drake_lfd.core.features",
+    "Tolerances": "drake_lfd.core.similarity",
+    "Allocation": "drake_lfd.core.similarity",
+    "allocate_features": "drake_lfd.core.similarity",
+    "TimingLimits": "drake_lfd.core.timing",
+    "TimedPlan": "drake_lfd.core.timing",
+    "Task": "drake_lfd.core.tasks",
+    "ConcreteTask": "drake_lfd.core.tasks",
+    "CriticalConfiguration": "drake_lfd.core.tasks",
+    "ConcreteCriticalConfiguration": "drake_lfd.core.tasks",
+    "Box": "drake_lfd.core.tasks",
+    "PathConstraint": "drake_lfd.core.tasks",
+    "draw_trial": "drake_lfd.core.tasks",
+    "rigid_transform_from_euler_zyx": "drake_lfd.core.tasks",
+    "Person": "drake_lfd.core.people",
+    "CollaborationParameters": "drake_lfd.core.people",
+    "Failure": "drake_lfd.core.failures",
+    "InputError": "drake_lfd.core.errors",
+    "scenarios_directory": "drake_lfd.core.resources",
+    "bundled_library_names": "drake_lfd.core.resources",
+}
+
+__all__ = list(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)

@@ -201,7 +201,7 @@ def _resample_by_arc_length(D, num_samples, rotation_length_m):
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Feature:
-    """A feature ``HD = {delta_1 .. delta_(n-1)}`` (Eq. 13) and its parts.
+    """A feature ``HD = {delta_1, ..., delta_(n-1)}`` (Eq. 13) and its parts.
 
     Attributes
     ----------

@@ -47,59 +47,38 @@ The modules:
   Meshcat.
 * ``recording_meshcat``: a Meshcat for recordings only, made without announcing a viewer.
 
-The names above are importable from this package (``from drake_lfd.diagrams import
-Pipeline``). They are loaded on first use (PEP 562), so a module that needs only
+It exports the station, the pipeline, closed-loop runs, their results and judging,
+reading a run off a Context, kinesthetic recording and the model preview (``from
+drake_lfd.diagrams import Pipeline``): ``__all__`` lists them and docs/api.rst documents
+them. Each is loaded from its module on first use (PEP 562), so a module that needs only
 ``kinesthetic`` (``drake-lfd record``, and every start of the command line) does not
-load the pipeline and the closed loop.
+load the pipeline and the closed loop. Its other modules, and the names the exports
+leave out, are internal.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from drake_lfd.core._lazy import lazy_exports
 
-if TYPE_CHECKING:
-    from drake_lfd.diagrams.closed_loop import (
-        ClosedLoopRunner,
-        plan_through_joint_configurations,
-        run_closed_loop,
-    )
-    from drake_lfd.diagrams.judging import RunJudgement, judge_run
-    from drake_lfd.diagrams.pipeline import Pipeline, TrialStart, build_pipeline, joint_path_checker
-    from drake_lfd.diagrams.station import Station, build_station
-    from drake_lfd.diagrams.trial_result import ClosedLoopResult, CriticalError
-
-# name -> module of this package that defines it (imported on first access).
+# name -> module that defines it (imported on first access, PEP 562).
 _EXPORTS = {
-    "Station": "station",
-    "build_station": "station",
-    "Pipeline": "pipeline",
-    "build_pipeline": "pipeline",
-    "TrialStart": "pipeline",
-    "joint_path_checker": "pipeline",
-    "ClosedLoopRunner": "closed_loop",
-    "run_closed_loop": "closed_loop",
-    "plan_through_joint_configurations": "closed_loop",
-    "ClosedLoopResult": "trial_result",
-    "CriticalError": "trial_result",
-    "judge_run": "judging",
-    "RunJudgement": "judging",
+    "Station": "drake_lfd.diagrams.station",
+    "build_station": "drake_lfd.diagrams.station",
+    "Pipeline": "drake_lfd.diagrams.pipeline",
+    "build_pipeline": "drake_lfd.diagrams.pipeline",
+    "TrialStart": "drake_lfd.diagrams.pipeline",
+    "joint_path_checker": "drake_lfd.diagrams.pipeline",
+    "ClosedLoopRunner": "drake_lfd.diagrams.closed_loop",
+    "run_closed_loop": "drake_lfd.diagrams.closed_loop",
+    "plan_through_joint_configurations": "drake_lfd.diagrams.closed_loop",
+    "ClosedLoopResult": "drake_lfd.diagrams.trial_result",
+    "CriticalError": "drake_lfd.diagrams.trial_result",
+    "read_trial": "drake_lfd.diagrams.trial_result",
+    "judge_run": "drake_lfd.diagrams.judging",
+    "RunJudgement": "drake_lfd.diagrams.judging",
+    "record_demonstration": "drake_lfd.diagrams.kinesthetic",
+    "write_configurations_html": "drake_lfd.diagrams.model_preview",
 }
 
 __all__ = list(_EXPORTS)
-
-
-def __getattr__(name: str):
-    if name not in _EXPORTS:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    # Literal imports (tests/test_layers.py checks every import's layer by its name).
-    from drake_lfd.diagrams import closed_loop, judging, pipeline, station, trial_result
-
-    modules = {"station": station, "pipeline": pipeline, "closed_loop": closed_loop,
-               "trial_result": trial_result, "judging": judging}
-    value = getattr(modules[_EXPORTS[name]], name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)

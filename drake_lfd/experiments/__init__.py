@@ -20,4 +20,36 @@ The modules:
   recovers them.
 * ``pick_and_place``: random pick-and-place workcell tasks, as task files.
 * ``notebooks``: what the tutorials need to run both as scripts and as notebooks.
+
+It exports the trials and experiments users run from Python (``from
+drake_lfd.experiments import plan_task``): ``plan_task``, closed-loop trials and their
+summaries, the paper's Section 6, figures, the re-derivation of a verdict and
+pick-and-place task files. ``__all__`` lists them and docs/api.rst documents them; each
+is loaded from its module on first use, so importing the package loads none of the
+modules that define them. Its other modules, and the names the exports leave out, are
+internal.
 """
+
+from __future__ import annotations
+
+from drake_lfd.core._lazy import lazy_exports
+
+# name -> module that defines it (imported on first access, PEP 562).
+_EXPORTS = {
+    "plan_task": "drake_lfd.experiments.planning_api",
+    "run_trials": "drake_lfd.experiments.simulation",
+    "TrialRunner": "drake_lfd.experiments.simulation",
+    "TrialOutcome": "drake_lfd.experiments.simulation",
+    "simulate_json": "drake_lfd.experiments.simulation",
+    "trial_summary_line": "drake_lfd.experiments.simulation",
+    "composition_counts": "drake_lfd.experiments.simulation",
+    "run_paper": "drake_lfd.experiments.paper",
+    "plan_figure": "drake_lfd.experiments.figures",
+    "joint_trajectories_figure": "drake_lfd.experiments.figures",
+    "training_curve_figure": "drake_lfd.experiments.figures",
+    "rederive_run": "drake_lfd.experiments.rederive",
+    "write_pick_and_place_tasks": "drake_lfd.experiments.pick_and_place",
+}
+
+__all__ = list(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)

@@ -39,4 +39,42 @@ The modules:
 * ``trajectory_export``: a planned joint trajectory resampled, checked and written for a
   real UR5e (``drake-lfd export``).
 * ``urscript``: the URScript program that runs an exported trajectory.
+
+It exports the files users read and write (``from drake_lfd.io import load_task``): task
+files, the demonstration library, joint logs, guidance scripts, people files, the
+simulation configuration, a demonstration request in words, policy files and exported
+trajectories. ``__all__`` lists them and docs/api.rst documents them; each is loaded
+from its module on first use, so importing the package loads none of the modules that
+define them. Its other modules, and the names the exports leave out, are internal.
 """
+
+from __future__ import annotations
+
+from drake_lfd.core._lazy import lazy_exports
+
+# name -> module that defines it (imported on first access, PEP 562).
+_EXPORTS = {
+    "load_task": "drake_lfd.io.task_files",
+    "Library": "drake_lfd.io.library",
+    "library_features": "drake_lfd.io.library",
+    "copy_library": "drake_lfd.io.library",
+    "check_end_effector_frame": "drake_lfd.io.library",
+    "resolve_features": "drake_lfd.io.library_source",
+    "read_rtde_csv": "drake_lfd.io.demonstration_logs",
+    "write_rtde_csv": "drake_lfd.io.demonstration_logs",
+    "read_demonstration_log": "drake_lfd.io.log_import",
+    "load_guidance_script": "drake_lfd.io.guidance_scripts",
+    "load_people_file": "drake_lfd.io.people_files",
+    "task_with_people": "drake_lfd.io.people_files",
+    "PipelineConfig": "drake_lfd.io.simulation_config",
+    "StationConfig": "drake_lfd.io.simulation_config",
+    "ControllerConfig": "drake_lfd.io.simulation_config",
+    "describe_uncovered": "drake_lfd.io.plan_json",
+    "save_policy": "drake_lfd.io.policy_files",
+    "load_policy": "drake_lfd.io.policy_files",
+    "load_plan_trajectory": "drake_lfd.io.trajectory_export",
+    "least_slow_down": "drake_lfd.io.trajectory_export",
+}
+
+__all__ = list(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)

@@ -52,4 +52,42 @@ The modules:
   tube (the baseline the refinement is compared with).
 * ``replanning``: a plan on the simulation clock (``ScheduledPlan``), and replanning
   when the task changes.
+
+It exports what research code calls to plan (``from drake_lfd.planning import
+PlanningOptions``): the options, ``plan_composition`` and its ``PlanResult``, the
+composition problem and its exact and Q-learning planners, training a policy, the
+paper's random tasks, the refinement and the plain optimizer, and the scheduled plan
+(the Gymnasium environment needs the ``gym`` extra, so it stays in ``gym_env``).
+``__all__`` lists them and docs/api.rst documents them; each is loaded from its module
+on first use, so importing the package loads none of the modules that define them. Its
+other modules, and the names the exports leave out, are internal.
 """
+
+from __future__ import annotations
+
+from drake_lfd.core._lazy import lazy_exports
+
+# name -> module that defines it (imported on first access, PEP 562).
+_EXPORTS = {
+    "PlanningOptions": "drake_lfd.planning.options",
+    "PlanResult": "drake_lfd.planning.planner",
+    "ComposedStep": "drake_lfd.planning.planner",
+    "UncoveredSegment": "drake_lfd.planning.planner",
+    "plan_composition": "drake_lfd.planning.planner",
+    "build_problem": "drake_lfd.planning.planner",
+    "CompositionProblem": "drake_lfd.planning.composition",
+    "plan_exact": "drake_lfd.planning.exact_planner",
+    "QPolicy": "drake_lfd.planning.q_learning",
+    "plan_q": "drake_lfd.planning.q_learning",
+    "episodes_to_steady": "drake_lfd.planning.q_learning",
+    "train_on_random_tasks": "drake_lfd.planning.training",
+    "random_training_task": "drake_lfd.planning.random_tasks",
+    "chained_task": "drake_lfd.planning.random_tasks",
+    "ScheduledPlan": "drake_lfd.planning.replanning",
+    "RefinementOptions": "drake_lfd.planning.refinement",
+    "refine_plan": "drake_lfd.planning.refinement",
+    "plain_plan": "drake_lfd.planning.plain_optimizer",
+}
+
+__all__ = list(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)

@@ -45,4 +45,34 @@ The modules:
   boxes and the floor along a path of poses (plain numpy).
 * ``motion_bounds``: how far a robot geometry can move when the joints turn (bounds
   that prune distance queries).
+
+It exports the UR5e and its work cell as users build and query them (``from
+drake_lfd.robot import UR5eKinematics``): the kinematics and joint names, the work cell
+and its geometry, the joint-path check and its result, the joint path's timing and the
+differential-IK law. ``__all__`` lists them and docs/api.rst documents them; each is
+loaded from its module on first use, so importing the package loads none of the modules
+that define them. Its other modules, and the names the exports leave out, are internal.
 """
+
+from __future__ import annotations
+
+from drake_lfd.core._lazy import lazy_exports
+
+# name -> module that defines it (imported on first access, PEP 562).
+_EXPORTS = {
+    "UR5eKinematics": "drake_lfd.robot.kinematics",
+    "UR5E_JOINT_NAMES": "drake_lfd.robot.kinematics",
+    "END_EFFECTOR_FRAME_NAME": "drake_lfd.robot.kinematics",
+    "Workcell": "drake_lfd.robot.workcell",
+    "table_under_robot": "drake_lfd.robot.workcell",
+    "KinematicScene": "drake_lfd.robot.scene",
+    "JointPathChecker": "drake_lfd.robot.joint_path",
+    "JointPath": "drake_lfd.robot.joint_path",
+    "time_joint_path": "drake_lfd.robot.path_timing",
+    "TimedJointPath": "drake_lfd.robot.path_timing",
+    "PathTimingOptions": "drake_lfd.robot.path_timing",
+    "DifferentialIKLaw": "drake_lfd.robot.differential_ik_law",
+}
+
+__all__ = list(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)

@@ -67,48 +67,44 @@ Every abstract port carries a model value of its real type; importing this packa
 installs ``typed_ports.install_connect_check``, so ``DiagramBuilder.Connect`` refuses to
 connect two abstract ports whose Python classes differ (Drake itself only compares C++
 types, and every Python object is the one C++ type ``Value[object]``).
+
+It exports the systems above, each with the model values of its ports and the helpers
+that build it (``from drake_lfd.systems import PlannerSystem``): ``__all__`` lists them
+and docs/api.rst documents them. Each is loaded from its module on first use; importing
+the package loads only ``typed_ports`` (and with it Drake) to install the check. Its
+other names are internal, and so is ``typed_ports``.
 """
 
-from drake_lfd.systems.typed_ports import install_connect_check
+from __future__ import annotations
 
-install_connect_check()
+from drake_lfd.core._lazy import lazy_exports
+from drake_lfd.systems.typed_ports import install_connect_check as _install_connect_check
 
-from drake_lfd.systems.demo_recorder import (  # noqa: E402
-    DemoRecorder,
-    add_joint_logger,
-    demonstration_from_log,
-)
-from drake_lfd.systems.differential_ik import DifferentialIKController  # noqa: E402
-from drake_lfd.systems.feature_library import FeatureLibrarySystem, LibraryFeatures  # noqa: E402
-from drake_lfd.systems.joint_path_source import JointPathSource  # noqa: E402
-from drake_lfd.systems.joint_trajectory_controller import JointTrajectoryController  # noqa: E402
-from drake_lfd.systems.plan_trajectory_source import PlanTrajectorySource  # noqa: E402
-from drake_lfd.systems.planner import NO_PLAN, GivenPlan, PlannerSystem  # noqa: E402
-from drake_lfd.systems.shell_monitor import ShellMonitor  # noqa: E402
-from drake_lfd.systems.trial_end import TrialEnd  # noqa: E402
-from drake_lfd.systems.people import PeopleGeometry  # noqa: E402
-from drake_lfd.systems.separation import SeparationMonitor  # noqa: E402
-from drake_lfd.systems.speed_override import TimeScaledJointPathSource  # noqa: E402
-from drake_lfd.systems.virtual_hand import VirtualHand  # noqa: E402
+_install_connect_check()
 
-__all__ = [
-    "DemoRecorder",
-    "add_joint_logger",
-    "demonstration_from_log",
-    "FeatureLibrarySystem",
-    "LibraryFeatures",
-    "PlannerSystem",
-    "NO_PLAN",
-    "GivenPlan",
-    "JointPathSource",
-    "JointTrajectoryController",
-    "PlanTrajectorySource",
-    "DifferentialIKController",
-    "ShellMonitor",
-    "TrialEnd",
-    "PeopleGeometry",
-    "SeparationMonitor",
-    "TimeScaledJointPathSource",
-    "VirtualHand",
-    "install_connect_check",
-]
+# name -> module that defines it (imported on first access, PEP 562).
+_EXPORTS = {
+    "DemoRecorder": "drake_lfd.systems.demo_recorder",
+    "NO_DEMONSTRATION": "drake_lfd.systems.demo_recorder",
+    "add_joint_logger": "drake_lfd.systems.demo_recorder",
+    "demonstration_from_log": "drake_lfd.systems.demo_recorder",
+    "FeatureLibrarySystem": "drake_lfd.systems.feature_library",
+    "LibraryFeatures": "drake_lfd.systems.feature_library",
+    "PlannerSystem": "drake_lfd.systems.planner",
+    "NO_PLAN": "drake_lfd.systems.planner",
+    "GivenPlan": "drake_lfd.systems.planner",
+    "JointPathSource": "drake_lfd.systems.joint_path_source",
+    "JointTrajectoryController": "drake_lfd.systems.joint_trajectory_controller",
+    "law_for_plant": "drake_lfd.systems.joint_trajectory_controller",
+    "PlanTrajectorySource": "drake_lfd.systems.plan_trajectory_source",
+    "DifferentialIKController": "drake_lfd.systems.differential_ik",
+    "ShellMonitor": "drake_lfd.systems.shell_monitor",
+    "TrialEnd": "drake_lfd.systems.trial_end",
+    "PeopleGeometry": "drake_lfd.systems.people",
+    "SeparationMonitor": "drake_lfd.systems.separation",
+    "TimeScaledJointPathSource": "drake_lfd.systems.speed_override",
+    "VirtualHand": "drake_lfd.systems.virtual_hand",
+}
+
+__all__ = list(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)
