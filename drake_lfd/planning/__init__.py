@@ -84,7 +84,7 @@ _EXPORTS = {
     "random_training_task": "drake_lfd.planning.random_tasks",
     "chained_task": "drake_lfd.planning.random_tasks",
     "ScheduledPlan": "drake_lfd.planning.replanning",
-    "RefinementOptions": "drake_lfd.planning.refinement",
+    "RefinementOptions": "drake_lfd.planning.refinement_options",
     "refine_plan": "drake_lfd.planning.refinement",
     "plain_plan": "drake_lfd.planning.plain_optimizer",
 }

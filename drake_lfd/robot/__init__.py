@@ -67,7 +67,7 @@ _EXPORTS = {
     "table_under_robot": "drake_lfd.robot.workcell",
     "KinematicScene": "drake_lfd.robot.scene",
     "JointPathChecker": "drake_lfd.robot.joint_path",
-    "JointPath": "drake_lfd.robot.joint_path",
+    "JointPath": "drake_lfd.robot.joint_path_records",
     "time_joint_path": "drake_lfd.robot.path_timing",
     "TimedJointPath": "drake_lfd.robot.path_timing",
     "PathTimingOptions": "drake_lfd.robot.path_timing",
