@@ -95,4 +95,7 @@ def test_a_trial_printed_as_finished_is_on_disk_when_the_interrupt_comes_during_
     assert status == 1 and captured.err.splitlines()[-1] == "drake-lfd simulate: interrupted"
     printed = [line for line in captured.out.splitlines() if line.startswith("trial ")]
     on_disk = read_json_lines(json_lines_path_for(out))
-    assert len(on_disk) == 1 and [line.split(":")[0] for line in printed] == ["trial 1 (seed 0)"]
+    # Trials run on parallel workers (one per core), so which one finishes first varies
+    # from run to run: the one on disk is the one printed, whichever it is.
+    assert len(on_disk) == 1 and on_disk[0]["trial"] in (1, 2, 3)
+    assert [line.split(" (")[0] for line in printed] == [f"trial {on_disk[0]['trial']}"]
