@@ -390,9 +390,9 @@ def check_schema(value, schema, path, file, expected=None):
                 if typing.get_origin(alternative) is list:
                     check_schema(value, alternative, path, file)
                     return
-        elif isinstance(value, dict):  # an optional block: Optional[SomeSpec]
+        elif isinstance(value, dict):  # an optional block: Optional[SomeSpec] or Optional[dict[...]]
             for alternative in alternatives:
-                if dataclasses.is_dataclass(alternative):
+                if dataclasses.is_dataclass(alternative) or typing.get_origin(alternative) is dict:
                     check_schema(value, alternative, path, file)
                     return
         elif any(
