@@ -295,7 +295,7 @@ def test_positions_over_10_m_suggest_millimetres(tmp_path):
 
 
 def test_a_full_turn_and_ten_metres_are_still_accepted():
-    from drake_lfd.io.yaml_checks import angle, coordinate
+    from drake_lfd.io.yaml_values import angle, coordinate
 
     assert angle("2*pi", file="f", field="a") == pytest.approx(2 * math.pi)
     assert angle(-2 * math.pi, file="f", field="a") == pytest.approx(-2 * math.pi)

@@ -12,7 +12,10 @@ The modules:
   default ``compiled`` one or the baseline's ``drake`` / ``pseudo_inverse``), monitor,
   logger, planner system.
 * ``guidance_scripts``: the YAML scripts of ``drake-lfd record``.
-* ``yaml_checks``: checks shared by the YAML readers.
+* ``yaml_checks``: reading the YAML files: syntax, nesting, duplicated keys, the
+  structure against the Spec dataclasses, loading.
+* ``yaml_values``: a YAML file's values converted and checked one by one (numbers,
+  coordinates, angles, poses).
 * ``people_files``: people in the cell and speed and separation monitoring (``people:``,
   ``collaboration:``; ``simulate --people``), read and checked.
 * ``demonstration_logs``: UR5e joint logs as RTDE CSV, read, checked and written.

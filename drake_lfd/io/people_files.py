@@ -35,9 +35,9 @@ from drake_lfd.core.people import (
     POLICIES, TRACK_KEYPOINTS, BodySize, CollaborationParameters, Person, Reach, RecordedTrack, ScriptedPath,
     Waypoint,
 )
-from drake_lfd.io.yaml_checks import (
-    coordinate, finite, load_spec, non_negative as _non_negative, positive as _positive, read_text, required,
-    unique_name, vector,
+from drake_lfd.io.yaml_checks import load_spec, read_text, required
+from drake_lfd.io.yaml_values import (
+    coordinate, finite, non_negative as _non_negative, positive as _positive, unique_name, vector,
 )
 
 __all__ = ["WaypointSpec", "ReachSpec", "BodySpec", "PersonSpec", "CollaborationSpec", "PeopleFileSpec",

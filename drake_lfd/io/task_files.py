@@ -115,17 +115,8 @@ from drake_lfd.io.simulation_config import PipelineConfig
 
 # The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
 # scripts, so both report problems alike.
-from drake_lfd.io.yaml_checks import (
-    angle,
-    coordinate,
-    finite,
-    load_spec,
-    pose,
-    positive as _positive,
-    read_text,
-    unique_name,
-    vector,
-)
+from drake_lfd.io.yaml_checks import load_spec, read_text
+from drake_lfd.io.yaml_values import angle, coordinate, finite, pose, positive as _positive, unique_name, vector
 
 # The Spec dataclasses other than TaskSpec are io/task_schema.py's.
 __all__ = [
