@@ -31,6 +31,8 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.read_only_arrays import read_only_array
+# Plain Python, so a task file is checked against them before Drake loads.
+from drake_lfd.core.task_terms import MIN_CRITICAL_CONFIGURATIONS, PATH_CONSTRAINT_KINDS
 
 __all__ = [
     "DEFAULT_ANGLE_GRID_DEG",
@@ -55,8 +57,6 @@ __all__ = [
 ]
 
 DEFAULT_ANGLE_GRID_DEG = 15.0
-MIN_CRITICAL_CONFIGURATIONS = 2
-PATH_CONSTRAINT_KINDS = ("orientation",)
 #: How far ``--refine`` may move E from the composed path where the task file does not
 #: say (docs/method.rst, Refinement by trajectory optimization, measures the trade-off).
 DEFAULT_REFINEMENT_POSITION_M = 0.15

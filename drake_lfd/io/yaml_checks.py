@@ -22,7 +22,9 @@ angles can be written as numbers, as multiples of pi or in degrees
 
 Reading and checking the structure (:func:`check_yaml_file`, :func:`check_schema`)
 imports neither Drake nor numpy, so the command line refuses a typo'd key at once;
-Drake is imported when a Spec is loaded (:func:`load_spec`).
+:func:`plain_load` makes the Spec ``yaml_load_typed`` would, in plain Python, so the
+values are checked before Drake loads too (``task_checks.py``); Drake is imported when
+a Spec is loaded (:func:`load_spec`).
 
 Not for: the values (``yaml_values.py``) or what a file means (its own module checks
 that: ranges, ordering, names), nor logs and libraries (``demonstration_logs.py``,
@@ -57,6 +59,8 @@ __all__ = [
     "check_yaml_file",
     "kind_of",
     "check_schema",
+    "NeedsDrake",
+    "plain_load",
 ]
 
 #: Largest YAML file read, in bytes: a task file is a few kilobytes; parsing megabytes
@@ -444,3 +448,107 @@ def check_schema(value, schema, path, file, expected=None):
         return
     raise TypeError(f"unsupported schema {schema!r}")
 
+
+# ------------------------------------------------------------------- loading, plainly
+
+
+class NeedsDrake(Exception):
+    """Raised by a check in plain Python where only Drake's loader, or a record that
+    imports Drake, can say what comes next (a Drake config struct in the file, a body's
+    proportions, a track file): the early check stops there, and loading the file
+    finds the rest in its own order."""
+
+
+_NONE_TYPE = type(None)
+
+
+def plain_load(raw, schema):
+    """What ``yaml_load_typed(schema=schema, ...)`` makes of ``raw``, YAML data that
+    :func:`check_schema` accepted against ``schema``, in plain Python.
+
+    The same conversions as Drake's loader for the kinds of fields the Spec dataclasses
+    use: an integer into a float field becomes a float, a numeric string into a float
+    field the float it spells, a whole float into an integer field an integer; unions of
+    numbers and strings keep the value as written; a mapping into a nested Spec updates
+    that Spec's defaults; an absent key keeps its default.
+
+    Raises
+    ------
+    NeedsDrake
+        For anything else (a Drake config struct among the types, or a value Drake's
+        loader would refuse where :func:`check_schema` did not).
+    """
+    try:
+        return _plain_value(raw, schema, None)
+    except NeedsDrake:
+        raise
+    except Exception as error:  # the loader would judge it: let it
+        raise NeedsDrake(f"{type(error).__name__}: {error}") from None
+
+
+def _plain_value(value, schema, current):
+    if schema in (float, int, str, bool):
+        converted = _plain_scalar(value, schema)
+        if converted is None:
+            raise NeedsDrake(f"{value!r} into {schema.__name__}")
+        return converted
+    origin = typing.get_origin(schema)
+    arguments = typing.get_args(schema)
+    if origin in (Union, types.UnionType):
+        if len(arguments) == 2 and arguments[1] is _NONE_TYPE:  # Optional[X]
+            if value is None:
+                return None
+            (inner,) = arguments[:1]
+            if current is None:
+                current = _plain_default(inner)
+            return _plain_value(value, inner, current)
+        if not isinstance(value, (dict, list)):
+            if type(value) in arguments:
+                return value
+            raise NeedsDrake(f"{value!r} into {schema}")
+        if "_tag" in value:  # the loader reads a variant's tag there
+            raise NeedsDrake("a _tag")
+        inner = arguments[0]
+        inner_origin = typing.get_origin(inner) or inner
+        return _plain_value(value, inner, current if isinstance(current, inner_origin) else _plain_default(inner))
+    if origin is list:
+        (item,) = arguments
+        return [_plain_value(entry, item, _plain_default(item)) for entry in value]
+    if origin is dict:
+        _, item = arguments
+        merged = dict(current or {})
+        for key, entry in value.items():
+            merged[key] = _plain_value(entry, item, merged[key] if key in merged else _plain_default(item))
+        return merged
+    if dataclasses.is_dataclass(schema):
+        instance = current if current is not None else schema()
+        instance = dataclasses.replace(instance)  # the loader merges into a copy
+        hints = typing.get_type_hints(schema)
+        for field in dataclasses.fields(schema):
+            if field.name in value:
+                setattr(instance, field.name, _plain_value(value[field.name], hints[field.name],
+                                                           getattr(instance, field.name)))
+        return instance
+    raise NeedsDrake(f"a field of type {schema!r}")
+
+
+def _plain_default(schema):
+    """``_create_from_schema``'s value: None for a union, else ``schema()``."""
+    if typing.get_origin(schema) in (Union, types.UnionType):
+        return None
+    return (typing.get_origin(schema) or schema)()
+
+
+def _plain_scalar(value, schema):
+    """``_convert_yaml_primitive_to_schema_type``: the value as ``schema``, or None."""
+    if type(value) is schema:
+        return value
+    if type(value) is int and schema is float:
+        return float(value)
+    if type(value) is float and schema is int and value.is_integer():
+        return int(value)
+    if type(value) is str and schema in (float, int):
+        return schema(value)
+    if type(value) is str and schema is bool and value in ("true", "false"):
+        return value == "true"
+    return None

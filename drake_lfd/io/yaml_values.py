@@ -10,11 +10,12 @@ them), :func:`pose_values` and :func:`unique_name`. Every problem is one
 :class:`~drake_lfd.core.errors.InputError` that names the file and the field
 (``waypoints[2].euler_zyx[0]``, list indices from 0).
 
-Everything here is plain Python; :func:`vector` (a numpy array) and :func:`pose` (a
-Drake ``RigidTransform``) import what they build when called.
+Everything here is plain Python, so a file's values are checked before Drake is
+imported (``task_checks.py``); :func:`vector` (a numpy array) and :func:`pose` (a Drake
+``RigidTransform``) import what they build when called.
 
 Not for: a file's structure (``yaml_checks.py``) or what its values mean together
-(``task_files.py``, ``people_files.py``, ``guidance_scripts.py``).
+(``task_checks.py``, ``people_checks.py``, ``guidance_scripts.py``).
 """
 
 import math
