@@ -10,15 +10,11 @@ and ends with one line, exit 1.
 import os
 import signal
 import subprocess
-import time
 
 from cli_subprocess import cli_command, cli_env, stderr_lines
+from helpers import line_count, wait_until
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.io.json_lines import JsonLinesFile, json_lines_path_for, read_json_lines
-
-
-def finished_lines(path):
-    return path.read_text().count("\n") if path.exists() else 0
 
 
 def test_sigint_after_the_second_trial_keeps_the_finished_ones_on_disk(tmp_path):
@@ -29,9 +25,7 @@ def test_sigint_after_the_second_trial_keeps_the_finished_ones_on_disk(tmp_path)
         cli_command("simulate", scenarios_directory() / "transferring.yaml", "--library", "paper5",
                     "--trials", trials, "--json", out),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=cli_env())
-    deadline = time.monotonic() + 90
-    while finished_lines(lines_path) < 2 and process.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.01)
+    wait_until(lambda: line_count(lines_path) >= 2, timeout_s=240, while_running=process, interval_s=0.01)
     assert process.poll() is None, "the run ended before its second trial was on disk"
     process.send_signal(signal.SIGINT)
     stdout, stderr = process.communicate(timeout=60)
