@@ -146,6 +146,7 @@ def test_a_malformed_people_file_is_refused_before_drake_loads(tmp_path, scenari
         assert err.splitlines() == [f"drake-lfd simulate: error: {refusal.value}"]
 
 
+@pytest.mark.slow
 def test_a_valid_task_still_loads_drake_when_the_command_runs(scenarios):
     loaded, _ = _probe("plan", scenarios / "assembling.yaml", "--library", "paper5")
     assert loaded["pydrake"] and loaded["status"] == 3  # the paper's demonstration request

@@ -11,12 +11,15 @@ import os
 import signal
 import subprocess
 
+import pytest
+
 from cli_subprocess import cli_command, cli_env, stderr_lines
 from helpers import line_count, wait_until
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.io.json_lines import JsonLinesFile, json_lines_path_for, read_json_lines
 
 
+@pytest.mark.slow
 def test_sigint_after_the_second_trial_keeps_the_finished_ones_on_disk(tmp_path):
     trials = 20
     out = tmp_path / "results" / "out.json"
@@ -65,6 +68,7 @@ def test_json_lines_are_strict_whole_and_beside_the_json(tmp_path):
     os.remove(path)
 
 
+@pytest.mark.slow
 def test_a_trial_printed_as_finished_is_on_disk_when_the_interrupt_comes_during_its_write(tmp_path, monkeypatch,
                                                                                          capsys):
     """Ctrl-C while the second trial's record is being written: the lines printed on the

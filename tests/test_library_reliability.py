@@ -65,6 +65,7 @@ def one_error_line(capsys):
 # ----------------------------------------------------------- concurrency and kills
 
 
+@pytest.mark.slow
 def test_concurrent_adds_of_different_demos_all_land(tmp_path):
     """5 rounds of 4 writer processes adding at the same instant (the benchmark: 100)."""
     totals = stress_module().concurrency_rounds(5, 4, tmp_path)
@@ -74,6 +75,7 @@ def test_concurrent_adds_of_different_demos_all_land(tmp_path):
     assert totals["temporaries"] == 0
 
 
+@pytest.mark.slow
 def test_kill_9_during_add_and_remove_loses_and_corrupts_nothing(tmp_path):
     """4 writers killed at random moments (the benchmark: 100); after the next command no
     temporary file is left."""
@@ -84,6 +86,7 @@ def test_kill_9_during_add_and_remove_loses_and_corrupts_nothing(tmp_path):
     assert totals["temporaries_after_next"] == 0
 
 
+@pytest.mark.slow
 def test_a_writer_waits_for_the_lock(library, tmp_path):
     """While another process holds the library's lock, ``library add`` waits; it adds as
     soon as the lock is released."""
@@ -121,6 +124,7 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
+@pytest.mark.slow
 def test_a_library_being_created_by_another_writer_is_waited_for(tmp_path):
     """Two writers racing to create a library: the second sees the first's manifest
     temporary but no manifest yet. It waits for the lock and adds to the library the

@@ -198,6 +198,7 @@ def _fuzz_outcomes(bases, count, seed, tmp_path, early_check, load):
     return kinds
 
 
+@pytest.mark.slow
 def test_on_fuzzed_task_files_the_early_check_refuses_as_loading_does(tmp_path):
     """240 seeded fuzzed files (the shipped scenarios, the rich file and the two that
     stop): no difference, and each outcome occurs (refusals, whole checks, stops)."""
