@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 import drake_lfd
+from helpers import wait_until
 
 __all__ = ["cli_command", "cli_env", "run_cli", "stderr_lines", "unwritable_folder"]
 
@@ -54,15 +55,20 @@ def run_cli(*args, env=None, timeout=90, cwd=None):
         command = ([sys.executable, "-c", _PEAK_WRAPPER, *map(str, args)] if measured else cli_command(*args))
         extra = dict(env or {}, DRAKE_LFD_TEST_PEAK_FILE=peak_file.name) if measured else env
         process = subprocess.Popen(command, stdout=out, stderr=err, text=True, env=cli_env(extra), cwd=cwd)
-        while True:
-            pid, status, usage = os.wait4(process.pid, os.WNOHANG)
-            if pid:
-                break
-            if time.perf_counter() - start > timeout:
-                process.kill()
-                os.wait4(process.pid, 0)
-                raise subprocess.TimeoutExpired(process.args, timeout)
-            time.sleep(0.02)
+        ended = []  # (status, usage) once reaped
+
+        def reaped():
+            if not ended:
+                pid, status, usage = os.wait4(process.pid, os.WNOHANG)
+                if pid:
+                    ended.append((status, usage))
+            return bool(ended)
+
+        if not wait_until(reaped, timeout_s=timeout):
+            process.kill()
+            os.wait4(process.pid, 0)
+            raise subprocess.TimeoutExpired(process.args, timeout)
+        status, usage = ended[0]
         process.returncode = os.waitstatus_to_exitcode(status)
         seconds = time.perf_counter() - start
         out.seek(0)

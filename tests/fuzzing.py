@@ -523,9 +523,6 @@ def task_cases(count: int, seed: int = 0, bases: dict[str, str] | None = None) -
 # ----------------------------------------------------------------------------- joint logs
 
 
-HEADER = ["timestamp"] + [f"actual_q_{i}" for i in range(6)]
-
-
 def default_log_bases(every: int = 4) -> dict[str, list[list[str]]]:
     """The bundled demonstrations' joint logs (``sims/demos/*.csv``), every ``every``-th
     row (so cases stay small; the motion is unchanged): name -> rows of cells, header first."""

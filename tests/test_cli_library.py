@@ -12,18 +12,11 @@ import pytest
 
 from drake_lfd.cli import main
 from drake_lfd.io.demonstration_logs import read_rtde_csv
-
-Q_HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0])
-HEADER = "timestamp,actual_q_0,actual_q_1,actual_q_2,actual_q_3,actual_q_4,actual_q_5"
+from helpers import joint_log_text, linear_motion
 
 
 def log_text(seed=0, m=40, delimiter=","):
-    rng = np.random.default_rng(seed)
-    t = np.linspace(0.0, 2.0, m)
-    q = Q_HOME + np.outer(np.linspace(0, 1, m), rng.uniform(-0.6, 0.6, 6))
-    lines = [HEADER.replace(",", delimiter)]
-    lines += [delimiter.join(repr(float(v)) for v in (t[k], *q[k])) for k in range(m)]
-    return "\n".join(lines) + "\n"
+    return joint_log_text(*linear_motion(seed, m), delimiter)
 
 
 def tree_digest(root):

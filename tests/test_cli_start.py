@@ -1,9 +1,10 @@
 """The command line answers before it loads Drake.
 
-``drake-lfd --version``, every ``--help``, a bad flag and every error a task file's
-structure holds (a missing file, invalid YAML, a typo'd key) are answered by plain
-Python: pydrake (and numpy) are imported only once a command's input has been checked
-and the command really runs. Each case runs ``drake-lfd`` in a fresh interpreter and
+``drake-lfd --version``, every ``--help``, a bad flag and every error a task file's text
+holds (a missing file, invalid YAML, a typo'd key, a value of the wrong kind or out of
+range: NaN, a bound's lower above its upper, a negative clearance), and a people file's
+for ``simulate --people``, are answered by plain Python: pydrake (and numpy) are
+imported only once a command's input has been checked and the command really runs. Each case runs ``drake-lfd`` in a fresh interpreter and
 reads ``sys.modules`` as the command ends: what was imported, not how long it took.
 The same messages and exit codes as after a full load (docs/cli.rst, Exit codes).
 """
@@ -102,6 +103,50 @@ def test_the_structure_check_and_the_loader_refuse_alike(tmp_path, scenarios):
     check_task_file(scenarios / "transferring.yaml")  # a good file passes
 
 
+def _loading_refusal(command, path):
+    """The line ``drake-lfd COMMAND`` prints when loading ``path`` refuses it."""
+    from drake_lfd.core.errors import InputError
+    from drake_lfd.io.task_files import load_task
+
+    with pytest.raises(InputError) as refusal:
+        load_task(path)
+    return f"drake-lfd {command}: error: {refusal.value}"
+
+
+@pytest.mark.parametrize(("command", "old", "new"), [
+    ("plan", "- {p: [-0.5, 0, 0.3]", "- {p: [-0.5, .nan, 0.3]"),
+    ("plan", "- {p: [-0.4, 0.2, z], euler_zyx: [0, -pi/2, 0]}", "- {p: [-0.4, 0.2, z], euler_zyx: [0, -pi/2, [1, -1]]}"),
+    ("simulate", "tool: []", "tool: []\nsimulation: {joint_check: {clearance_m: -0.01}}"),
+    ("sweep", "tool: []", "tool: []\ntiming: {limit_fraction: 0}"),
+], ids=["nan-coordinate", "angle-bound-lower-above-upper", "negative-clearance", "timing"])
+def test_a_value_out_of_range_is_refused_before_drake_loads(tmp_path, scenarios, command, old, new):
+    text = (scenarios / "transferring.yaml").read_text()
+    assert old in text
+    task = tmp_path / "task.yaml"
+    task.write_text(text.replace(old, new, 1))
+    extra = ["--out", tmp_path / "sweep"] if command == "sweep" else []
+    loaded, err = _probe(command, task, "--library", "paper5", *extra)
+    assert loaded == {"status": 2, "pydrake": False, "numpy": False}
+    assert err.splitlines() == [_loading_refusal(command, task)]
+
+
+def test_a_malformed_people_file_is_refused_before_drake_loads(tmp_path, scenarios):
+    from drake_lfd.core.errors import InputError
+    from drake_lfd.io.people_files import load_people_file
+
+    people = tmp_path / "people.yaml"
+    for text in ("people: [{name: a, path: [{t: 1, xy: [0, 0]}, {t: 0.5, xy: [0, 1]}]}]\n",  # time runs back
+                 "people: [{name: a, path: [{t: 0, xy: [0, 0]}], speed: 2}]\n",  # a typo'd key
+                 "collaboration: {intrusion_distance_m: -0.1}\n"):
+        people.write_text(text)
+        with pytest.raises(InputError) as refusal:
+            load_people_file(people)
+        loaded, err = _probe("simulate", scenarios / "transferring.yaml", "--library", "paper5", "--people", people)
+        assert loaded == {"status": 2, "pydrake": False, "numpy": False}
+        assert err.splitlines() == [f"drake-lfd simulate: error: {refusal.value}"]
+
+
+@pytest.mark.slow
 def test_a_valid_task_still_loads_drake_when_the_command_runs(scenarios):
     loaded, _ = _probe("plan", scenarios / "assembling.yaml", "--library", "paper5")
     assert loaded["pydrake"] and loaded["status"] == 3  # the paper's demonstration request

@@ -10,8 +10,7 @@ import drake_lfd.io.demonstration_logs as mut
 from drake_lfd.core.demonstrations import Demonstration, check_demonstration
 from drake_lfd.core.errors import InputError
 from drake_lfd.robot.kinematics import UR5eKinematics, dual_quaternions_from_demonstration, poses_from_demonstration
-
-Q_HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0])
+from helpers import Q_HOME, joint_log_text
 
 
 def joint_motion(m=30, t0=12.5, duration=1.5, seed=0):
@@ -63,11 +62,6 @@ def real_format_log(t, q, runtime_state=None, delimiter=" "):
     return "\n".join(lines) + "\n"
 
 
-def plain_log(t, q, delimiter=","):
-    lines = [delimiter.join(["timestamp"] + [f"actual_q_{i}" for i in range(6)])]
-    for k in range(len(t)):
-        lines.append(delimiter.join(repr(float(v)) for v in (t[k], *q[k])))
-    return "\n".join(lines) + "\n"
 
 
 def refused(tmp_path, text, name="log.csv"):
@@ -113,7 +107,7 @@ def test_real_rtde_log_space_separated(tmp_path):
 def test_comma_separated_with_spaces_and_crlf(tmp_path):
     t, q = joint_motion(m=5)
     path = tmp_path / "ur_rtde.csv"
-    path.write_bytes(plain_log(t, q, delimiter=", ").replace("\n", "\r\n").encode())
+    path.write_bytes(joint_log_text(t, q, delimiter=", ").replace("\n", "\r\n").encode())
     demo, _ = mut.read_rtde_csv(path)
     np.testing.assert_array_equal(demo.joint_positions, q)
 
@@ -147,7 +141,7 @@ def test_freedrive_log_without_program_is_kept_with_warning(tmp_path):
 
 def test_last_line_with_missing_fields_is_dropped_with_warning(tmp_path):
     t, q = joint_motion(m=6)
-    text = plain_log(t, q)
+    text = joint_log_text(t, q)
     cut = text[: text.rindex(",", 0, len(text) - 20)]  # last line loses its last fields
     path = tmp_path / "cut.csv"
     path.write_text(cut)
@@ -159,7 +153,7 @@ def test_last_line_with_missing_fields_is_dropped_with_warning(tmp_path):
 
 def test_last_token_cut_without_newline_is_dropped_with_warning(tmp_path):
     t, q = joint_motion(m=6)
-    text = plain_log(t, q).rstrip("\n")
+    text = joint_log_text(t, q).rstrip("\n")
     path = tmp_path / "cut.csv"
     path.write_text(text + "e")  # "0.123e": the last value was cut inside its exponent
     demo, warnings = mut.read_rtde_csv(path)
@@ -171,7 +165,7 @@ def test_last_token_cut_without_newline_is_dropped_with_warning(tmp_path):
 
 def test_short_line_in_the_middle_is_an_error(tmp_path):
     t, q = joint_motion(m=6)
-    lines = plain_log(t, q).splitlines()
+    lines = joint_log_text(t, q).splitlines()
     lines[3] = lines[3][: lines[3].rindex(",")]
     message = refused(tmp_path, "\n".join(lines) + "\n")
     assert "line 4" in message and "has 6 fields but the header has 7" in message
@@ -201,7 +195,7 @@ def test_wrong_number_of_joints(tmp_path):
 
 def test_non_numeric_cell_names_line_and_column(tmp_path):
     t, q = joint_motion(m=5)
-    lines = plain_log(t, q).splitlines()
+    lines = joint_log_text(t, q).splitlines()
     cells = lines[2].split(",")
     cells[3] = "abc"
     lines[2] = ",".join(cells)
@@ -212,7 +206,7 @@ def test_non_numeric_cell_names_line_and_column(tmp_path):
 @pytest.mark.parametrize("bad", ["nan", "inf", "-inf"])
 def test_non_finite_values_name_line_and_column(tmp_path, bad):
     t, q = joint_motion(m=5)
-    lines = plain_log(t, q).splitlines()
+    lines = joint_log_text(t, q).splitlines()
     cells = lines[4].split(",")
     cells[5] = bad
     lines[4] = ",".join(cells)
@@ -222,20 +216,20 @@ def test_non_finite_values_name_line_and_column(tmp_path, bad):
 
 def test_fewer_than_two_samples(tmp_path):
     t, q = joint_motion(m=1)
-    assert "1 sample" in refused(tmp_path, plain_log(t, q))
-    assert "0 sample" in refused(tmp_path, plain_log(t[:0], q[:0]))
+    assert "1 sample" in refused(tmp_path, joint_log_text(t, q))
+    assert "0 sample" in refused(tmp_path, joint_log_text(t[:0], q[:0]))
 
 
 def test_timestamps_must_strictly_increase(tmp_path):
     t, q = joint_motion(m=5)
     t[3] = t[2]
-    message = refused(tmp_path, plain_log(t, q))
+    message = refused(tmp_path, joint_log_text(t, q))
     assert "line 5, column timestamp" in message and "line 4" in message
 
 
 def test_degrees_are_refused(tmp_path):
     t, q = joint_motion(m=5)
-    message = refused(tmp_path, plain_log(t, np.degrees(q)))
+    message = refused(tmp_path, joint_log_text(t, np.degrees(q)))
     assert "degrees" in message and "line 2" in message
 
 
@@ -297,7 +291,7 @@ def test_last_line_without_newline_is_dropped_whatever_it_parses_to(tmp_path):
     t, q = regular_log(m=20)
     q[:, 5] += -3.6277474137027124 - q[-1, 5]  # wrist_3 ends at the value
     q[-1, 5] = -3.6277474137027124
-    text = plain_log(t, q).rstrip("\n")
+    text = joint_log_text(t, q).rstrip("\n")
     assert text.endswith(",-3.6277474137027124")
     path = tmp_path / "cut.csv"
     path.write_text(text[: -len(".6277474137027124")])  # cut to "-3": still a number
@@ -315,14 +309,14 @@ def test_last_line_without_newline_is_dropped_whatever_it_parses_to(tmp_path):
 def test_teleport_jump_is_refused_with_its_line(tmp_path):
     t, q = regular_log()
     q[120:, 1] += 2.0  # 2 rad in 2 ms: 1000 rad/s
-    message = refused(tmp_path, plain_log(t, q))
+    message = refused(tmp_path, joint_log_text(t, q))
     assert "line 122, column actual_q_1" in message and "line 121" in message
     assert "180 deg/s" in message
     # Just under twice the speed limit is a motion, not a jump.
     t, q = regular_log(m=3)
     q[2, 0] = q[1, 0] + 0.99 * mut.MAX_JOINT_SPEED_RAD_S * (t[2] - t[1])
     path = tmp_path / "fast.csv"
-    path.write_text(plain_log(t, q))
+    path.write_text(joint_log_text(t, q))
     assert mut.read_rtde_csv(path).demonstration.num_samples == 3
     assert mut.MAX_JOINT_SPEED_RAD_S == pytest.approx(2 * np.radians(180))
     np.testing.assert_allclose(UR5eKinematics().velocity_limits(), mut.UR5E_JOINT_SPEED_LIMIT_RAD_S)
@@ -331,14 +325,14 @@ def test_teleport_jump_is_refused_with_its_line(tmp_path):
 @pytest.mark.parametrize("scale, unit", [(1e3, "milliseconds"), (1e9, "nanoseconds")])
 def test_timestamps_in_ms_or_ns_are_refused_with_the_line(tmp_path, scale, unit):
     t, q = regular_log(m=2101, scale=scale)  # 4.2 s at 500 Hz: "4200 s" in milliseconds
-    message = refused(tmp_path, plain_log(t, q))
+    message = refused(tmp_path, joint_log_text(t, q))
     assert "line 3, column timestamp" in message and unit in message and "seconds" in message
 
 
 def test_absurd_duration_is_refused_with_the_line(tmp_path):
     t = np.arange(800.0)  # one sample a second, 799 s: a recording left running
     q = Q_HOME + np.outer(t / t[-1], [0.3, -0.2, 0.1, 0.2, 0.3, -0.4])
-    message = refused(tmp_path, plain_log(t, q))
+    message = refused(tmp_path, joint_log_text(t, q))
     # Line 2 holds t = 0; line 603 the first sample more than 600 s after it.
     assert "line 603, column timestamp" in message and "600 s" in message and "spans 799 s" in message
 
@@ -350,7 +344,7 @@ def test_absurd_duration_is_refused_with_the_line(tmp_path):
 )
 def test_python_only_number_spellings_are_refused(tmp_path, spelling):
     t, q = regular_log(m=5)
-    lines = plain_log(t, q).splitlines()
+    lines = joint_log_text(t, q).splitlines()
     cells = lines[3].split(",")
     cells[2] = spelling
     lines[3] = ",".join(cells)

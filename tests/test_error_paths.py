@@ -86,6 +86,7 @@ def test_oversized_planning_problems_are_refused_before_allocation(tmp_path, nam
     assert seconds < 20 and peak < 400 * 2**20
 
 
+@pytest.mark.slow
 def test_the_suggested_grid_plans_within_a_gigabyte(tmp_path):
     """The grid the refusal suggests is accepted, and planning with it stays under 1 GB
     (the estimate is not just a refusal: it is close to what planning takes)."""
@@ -148,6 +149,7 @@ def test_deep_yaml_nesting_is_refused_without_recursion(tmp_path, nested):
     assert "nested more than 32 levels" in str(error.value) and error.value.field.startswith("line 1 column")
 
 
+@pytest.mark.slow
 def test_positions_of_1e300_are_refused_and_json_is_strict(tmp_path):
     huge = write(tmp_path, "huge.yaml", scenario_text("transferring").replace(
         "critical_configurations:\n  - {p: [", "critical_configurations:\n  - {p: [1e300, ", 1))
@@ -210,6 +212,7 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
+@pytest.mark.slow
 def test_a_full_disk_is_one_line_and_leaves_no_file(tmp_path):
     out = tmp_path / "p.json"
     process = subprocess.run(
@@ -249,6 +252,7 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
+@pytest.mark.slow
 def test_an_internal_error_is_one_line_and_the_traceback_needs_debug():
     args = [cli_command()[0], "-c", INTERNAL_ERROR, "plan", str(SIMS / "transferring.yaml"), "--library", "paper5"]
     process = subprocess.run(args, capture_output=True, text=True, env=cli_env(), timeout=90)
@@ -295,7 +299,7 @@ def test_positions_over_10_m_suggest_millimetres(tmp_path):
 
 
 def test_a_full_turn_and_ten_metres_are_still_accepted():
-    from drake_lfd.io.yaml_checks import angle, coordinate
+    from drake_lfd.io.yaml_values import angle, coordinate
 
     assert angle("2*pi", file="f", field="a") == pytest.approx(2 * math.pi)
     assert angle(-2 * math.pi, file="f", field="a") == pytest.approx(-2 * math.pi)

@@ -260,6 +260,7 @@ def test_a_rigid_motion_of_the_whole_problem_keeps_the_fidelity_plan(paper5):
 
 # -- the command line ----------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_plan_cost_option_on_the_command_line(tmp_path):
     """``plan --cost paper`` against the default (fidelity) on a carry whose paper plan is
     the stretched lift-over-lower: both exit 0, the JSON says which cost, and the default

@@ -37,6 +37,7 @@ def _benchmark():
     return module
 
 
+@pytest.mark.slow
 def test_a_seeded_sample_of_fuzzed_inputs_never_gives_a_traceback():
     fuzz = _benchmark()
     cases = list(task_cases(150, seed=0)) + list(log_cases(60, seed=0))

@@ -10,17 +10,16 @@ and ends with one line, exit 1.
 import os
 import signal
 import subprocess
-import time
+
+import pytest
 
 from cli_subprocess import cli_command, cli_env, stderr_lines
+from helpers import line_count, wait_until
 from drake_lfd.core.resources import scenarios_directory
 from drake_lfd.io.json_lines import JsonLinesFile, json_lines_path_for, read_json_lines
 
 
-def finished_lines(path):
-    return path.read_text().count("\n") if path.exists() else 0
-
-
+@pytest.mark.slow
 def test_sigint_after_the_second_trial_keeps_the_finished_ones_on_disk(tmp_path):
     trials = 20
     out = tmp_path / "results" / "out.json"
@@ -29,9 +28,7 @@ def test_sigint_after_the_second_trial_keeps_the_finished_ones_on_disk(tmp_path)
         cli_command("simulate", scenarios_directory() / "transferring.yaml", "--library", "paper5",
                     "--trials", trials, "--json", out),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=cli_env())
-    deadline = time.monotonic() + 90
-    while finished_lines(lines_path) < 2 and process.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.01)
+    wait_until(lambda: line_count(lines_path) >= 2, timeout_s=240, while_running=process, interval_s=0.01)
     assert process.poll() is None, "the run ended before its second trial was on disk"
     process.send_signal(signal.SIGINT)
     stdout, stderr = process.communicate(timeout=60)
@@ -71,6 +68,7 @@ def test_json_lines_are_strict_whole_and_beside_the_json(tmp_path):
     os.remove(path)
 
 
+@pytest.mark.slow
 def test_a_trial_printed_as_finished_is_on_disk_when_the_interrupt_comes_during_its_write(tmp_path, monkeypatch,
                                                                                          capsys):
     """Ctrl-C while the second trial's record is being written: the lines printed on the

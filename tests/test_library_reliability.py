@@ -8,24 +8,21 @@ The concurrency and kill rounds are ``benchmarks/stress_library.py`` with fewer 
 
 import importlib.util
 import json
-import math
 import os
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from drake_lfd.cli import main
 from drake_lfd.core.errors import InputError
 from drake_lfd.io.file_lock import exclusive_lock, shared_lock
 from drake_lfd.io.library import Library, is_unused_library_directory
+from helpers import linear_motion, wait_until, write_joint_log
 
 ROOT = Path(__file__).resolve().parent.parent
-Q_HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0])
-HEADER = "timestamp,actual_q_0,actual_q_1,actual_q_2,actual_q_3,actual_q_4,actual_q_5"
 IDENTITY = ["--tool0-E-p", "0", "0", "0", "--tool0-E-euler-zyx", "0", "0", "0"]
 
 
@@ -37,13 +34,7 @@ def stress_module():
 
 
 def write_log(path, seed=0, m=40, still=False, end="\n"):
-    rng = np.random.default_rng(seed)
-    t = np.linspace(0.0, 2.0, m)
-    motion = np.zeros(6) if still else rng.uniform(-0.6, 0.6, 6)
-    q = Q_HOME + np.outer(np.linspace(0, 1, m), motion)
-    lines = [HEADER] + [",".join(repr(float(v)) for v in (t[k], *q[k])) for k in range(m)]
-    path.write_text("\n".join(lines) + end)
-    return path
+    return write_joint_log(path, *linear_motion(seed, m, still), end=end)
 
 
 def tree(root):
@@ -74,6 +65,7 @@ def one_error_line(capsys):
 # ----------------------------------------------------------- concurrency and kills
 
 
+@pytest.mark.slow
 def test_concurrent_adds_of_different_demos_all_land(tmp_path):
     """5 rounds of 4 writer processes adding at the same instant (the benchmark: 100)."""
     totals = stress_module().concurrency_rounds(5, 4, tmp_path)
@@ -83,6 +75,7 @@ def test_concurrent_adds_of_different_demos_all_land(tmp_path):
     assert totals["temporaries"] == 0
 
 
+@pytest.mark.slow
 def test_kill_9_during_add_and_remove_loses_and_corrupts_nothing(tmp_path):
     """4 writers killed at random moments (the benchmark: 100); after the next command no
     temporary file is left."""
@@ -93,6 +86,7 @@ def test_kill_9_during_add_and_remove_loses_and_corrupts_nothing(tmp_path):
     assert totals["temporaries_after_next"] == 0
 
 
+@pytest.mark.slow
 def test_a_writer_waits_for_the_lock(library, tmp_path):
     """While another process holds the library's lock, ``library add`` waits; it adds as
     soon as the lock is released."""
@@ -130,6 +124,7 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
+@pytest.mark.slow
 def test_a_library_being_created_by_another_writer_is_waited_for(tmp_path):
     """Two writers racing to create a library: the second sees the first's manifest
     temporary but no manifest yet. It waits for the lock and adds to the library the
@@ -151,10 +146,7 @@ def test_a_library_being_created_by_another_writer_is_waited_for(tmp_path):
              *IDENTITY], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             env={**os.environ, "LISTED": str(listed)},
         )
-        deadline = time.monotonic() + 60.0
-        while not listed.exists() and process.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert listed.exists(), process.communicate()
+        assert wait_until(listed.exists, timeout_s=120, while_running=process, interval_s=0.05), process.communicate()
         time.sleep(1.0)
         assert process.poll() is None, process.communicate()  # waiting for the lock, not refusing
         for path in (made / "demos").iterdir():

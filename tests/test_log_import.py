@@ -19,6 +19,7 @@ from drake_lfd.core.errors import InputError
 from drake_lfd.io.library import Library
 from drake_lfd.io.rtde_logs import TCP_POSE_COLUMNS, rotation_matrices_from_rotation_vectors
 from drake_lfd.robot.kinematics import UR5eKinematics
+from helpers import JOINT_COLUMNS, Q_HOME, RTDE_COLUMNS, table_text, write_joint_log
 
 rosbags = pytest.importorskip("rosbags")
 from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
@@ -26,10 +27,8 @@ from rosbags.rosbag2 import StoragePlugin, Writer as Writer2  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 IDENTITY = ["--tool0-E-p", "0", "0", "0", "--tool0-E-euler-zyx", "0", "0", "0"]
-Q_HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0])
 RATE_HZ = 50
 M = 60
-JOINTS = [f"actual_q_{i}" for i in range(6)]
 UR_NAMES = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
             "wrist_3_joint"]
 GRIPPER = "robotiq_85_left_knuckle_joint"
@@ -57,13 +56,6 @@ def tcp_poses(q, offset=(0.0, 0.0, 0.1)):
     return np.hstack([p, vectors])
 
 
-def clean_csv(path, t, q):
-    lines = [",".join(["timestamp", *JOINTS])]
-    lines += [",".join(repr(float(v)) for v in (t[k], *q[k])) for k in range(len(t))]
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
 def add(tmp_path, log, *options, name="demo", library="lib"):
     root = tmp_path / library
     code = main(["library", "add", str(root), str(log), "--name", name, *IDENTITY, *options])
@@ -80,7 +72,7 @@ def stored(root, name="demo"):
 def reference(tmp_path, capsys):
     """The motion's features added from the clean RTDE CSV."""
     t, q = motion()
-    code, root = add(tmp_path, clean_csv(tmp_path / "clean.csv", t, q), library="reference")
+    code, root = add(tmp_path, write_joint_log(tmp_path / "clean.csv", t, q), library="reference")
     assert code == 0
     capsys.readouterr()
     return stored(root)
@@ -98,10 +90,8 @@ def assert_same_features(root, reference, name="demo"):
 def test_space_separated_free_drive_without_timestamps(tmp_path, reference, capsys):
     t, q = motion()
     poses = tcp_poses(q)
-    lines = [" ".join(JOINTS + list(TCP_POSE_COLUMNS))]
-    lines += [" ".join(repr(float(v)) for v in (*q[k], *poses[k])) for k in range(M)]
     log = tmp_path / "freedrive.csv"
-    log.write_text("\n".join(lines) + "\n")
+    log.write_text(table_text(JOINT_COLUMNS + list(TCP_POSE_COLUMNS), np.hstack([q, poses]), delimiter=" "))
 
     code, root = add(tmp_path, log)
     assert code == 2 and "--rate HZ" in capsys.readouterr().err  # no timestamps, no rate
@@ -109,7 +99,7 @@ def test_space_separated_free_drive_without_timestamps(tmp_path, reference, caps
     assert code == 0, capsys.readouterr().err
     assert_same_features(root, reference)
     stored_log = (root / "demos" / "demo.csv").read_text().splitlines()
-    assert stored_log[0] == "timestamp," + ",".join(JOINTS)
+    assert stored_log[0] == "timestamp," + ",".join(JOINT_COLUMNS)
     assert float(stored_log[-1].split(",")[0]) == pytest.approx((M - 1) / RATE_HZ)
 
 
@@ -178,10 +168,8 @@ def test_full_125_column_recording_with_a_duplicated_unused_column(tmp_path, ref
 
 def tcp_log(tmp_path, q, poses, name="tcp.csv"):
     t = np.arange(len(q)) / RATE_HZ
-    lines = [" ".join(["timestamp", *JOINTS, *TCP_POSE_COLUMNS])]
-    lines += [" ".join(repr(float(v)) for v in (t[k], *q[k], *poses[k])) for k in range(len(q))]
     path = tmp_path / name
-    path.write_text("\n".join(lines) + "\n")
+    path.write_text(table_text([*RTDE_COLUMNS, *TCP_POSE_COLUMNS], np.column_stack([t, q, poses]), delimiter=" "))
     return path
 
 
@@ -221,18 +209,18 @@ def test_tcp_offset_check(tmp_path, capsys):
 
     # A log without actual_TCP_pose cannot be checked.
     t, q = motion()
-    code, _ = add(tmp_path, clean_csv(tmp_path / "plain.csv", t, q), "--tcp-offset", "0", "0", "0.1", library="e")
+    code, _ = add(tmp_path, write_joint_log(tmp_path / "plain.csv", t, q), "--tcp-offset", "0", "0", "0.1", library="e")
     err = capsys.readouterr().err.strip()
     assert code == 2 and "actual_TCP_pose_0" in err
 
 
 def test_csv_time_window(tmp_path, capsys):
     t, q = motion()
-    log = clean_csv(tmp_path / "clean.csv", t + 100.0, q)  # any origin: seconds from the first sample
+    log = write_joint_log(tmp_path / "clean.csv", t + 100.0, q)  # any origin: seconds from the first sample
     code, root = add(tmp_path, log, "--start", "0.2", "--end", "0.8")
     assert code == 0, capsys.readouterr().err
     keep = (t >= 0.2 - 1e-9) & (t <= 0.8 + 1e-9)
-    code, expected = add(tmp_path, clean_csv(tmp_path / "cut.csv", t[keep], q[keep]), library="expected")
+    code, expected = add(tmp_path, write_joint_log(tmp_path / "cut.csv", t[keep], q[keep]), library="expected")
     assert code == 0
     assert Library.open(root).entry("demo").samples == int(keep.sum()) == 31
     assert_same_features(root, stored(expected))
@@ -298,7 +286,7 @@ def test_ros2_mcap_bag(tmp_path, reference, capsys):
     code, root = add(tmp_path, bag)
     assert code == 0, capsys.readouterr().err
     assert_same_features(root, reference)
-    assert (root / "demos" / "demo.csv").read_text().startswith("timestamp," + ",".join(JOINTS) + "\n0.0,")
+    assert (root / "demos" / "demo.csv").read_text().startswith("timestamp," + ",".join(JOINT_COLUMNS) + "\n0.0,")
 
 
 def test_ros2_sqlite3_bag(tmp_path, reference, capsys):
@@ -348,7 +336,7 @@ def test_bag_time_window(tmp_path, capsys):
     code, root = add(tmp_path, bag, "--start", "0.2", "--end", "0.8")
     assert code == 0, capsys.readouterr().err
     keep = (t >= 0.2 - 1e-9) & (t <= 0.8 + 1e-9)
-    code, expected = add(tmp_path, clean_csv(tmp_path / "cut.csv", t[keep] - t[keep][0], q[keep]), library="x")
+    code, expected = add(tmp_path, write_joint_log(tmp_path / "cut.csv", t[keep] - t[keep][0], q[keep]), library="x")
     assert code == 0
     assert Library.open(root).entry("demo").samples == 31
     assert_same_features(root, stored(expected))
@@ -364,7 +352,7 @@ def test_options_for_the_other_format_are_refused(tmp_path, capsys):
     bag = write_ros1_bag(tmp_path / "demo.bag", joint_state_messages(get_typestore(Stores.ROS1_NOETIC), t, q, ros1=True))
     assert add(tmp_path, bag, "--rate", "50")[0] == 2
     assert "--rate" in capsys.readouterr().err
-    log = clean_csv(tmp_path / "clean.csv", t, q)
+    log = write_joint_log(tmp_path / "clean.csv", t, q)
     assert add(tmp_path, log, "--topic", "/joint_states")[0] == 2
     assert "--topic" in capsys.readouterr().err
 

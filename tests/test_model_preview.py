@@ -27,6 +27,7 @@ def test_show_model_refuses_bad_configuration(tmp_path, capsys):
     assert len(err) == 1 and "--q" in err[0]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (installed by .ci/run)")
 def test_screenshot_shows_the_arm(tmp_path):
     out = tmp_path / "ur5e.html"

@@ -24,6 +24,7 @@ def no_network(tmp_path):
     return {"DRAKE_ALLOW_NETWORK": "none", "HOME": str(home), "XDG_CACHE_HOME": str(home / ".cache")}, home
 
 
+@pytest.mark.slow
 def test_plan_and_simulate_work_without_network_and_download_nothing(tmp_path, no_network):
     env, home = no_network
     status, out, err, _, _ = run_cli("plan", TRANSFERRING, "--library", "paper5", env=env)

@@ -69,6 +69,7 @@ def test_a_plan_keeps_every_path_constraint_with_the_closed_loops_margin():
     assert allowed_deviation(constraint) == pytest.approx(constraint.tolerance_rad - PATH_CONSTRAINT_MARGIN_RAD)
 
 
+@pytest.mark.slow
 def test_no_composition_keeps_a_tighter_constraint_exit_4_naming_it(tmp_path, capsys):
     import drake_lfd.cli as cli
 

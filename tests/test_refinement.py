@@ -103,6 +103,7 @@ def test_the_plain_optimizer_is_the_peer_without_a_tube(transferring, refined):
     assert plain.timed.duration < composed.timed.duration
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("options, expected", [
     (RefinementOptions(tube_position_m=1e-4, tube_rotation_rad=math.radians(0.01)), ""),
     # The wall-clock safety stop is an error, said as such (never a quiet change of plan).
@@ -120,6 +121,7 @@ def test_a_failed_refinement_leaves_the_unrefined_plan_and_says_why(transferring
     assert document["poses"][-1]["t"] == pytest.approx(composed.timed.duration)
 
 
+@pytest.mark.slow
 def test_the_refinement_is_the_same_bits_whatever_ran_before_it(transferring, refined):
     """The budget counts iterations, SNOPT keeps no state between solves and the scene
     is reused: refining the same plan again, after a different refinement on the same
@@ -192,6 +194,7 @@ def test_the_tube_program_runs_from_every_start_and_keeps_the_shortest_that_pass
     assert report.duration_s == first.plan.duration
 
 
+@pytest.mark.slow
 def test_a_start_whose_motion_fails_a_check_is_passed_over(transferring, monkeypatch):
     """The first start's motion refused (as a failed check would): the plan is the best
     of the others', with the same work."""
@@ -274,6 +277,7 @@ def test_a_plan_without_refinement_has_no_refinement_object(transferring):
     assert "refinement" not in plan_json(composed)
 
 
+@pytest.mark.slow
 def test_plan_refine_json_on_the_command_line(tmp_path):
     out = tmp_path / "plan.json"
     status, stdout, stderr, _, _ = run_cli("plan", SIMS / "transferring.yaml", "--library", "paper5", "--refine",

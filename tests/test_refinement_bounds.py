@@ -150,6 +150,7 @@ def _commanded(document, task):
     return t, X, due
 
 
+@pytest.mark.slow
 def test_plan_refine_never_reports_a_plan_that_breaks_a_path_constraint(tmp_path):
     """On the machine-tending task, whatever the refinement does: the plan ``plan --refine``
     reports (refined or not) keeps the straight-out constraint on the joints it commands,
@@ -172,6 +173,7 @@ def test_plan_refine_never_reports_a_plan_that_breaks_a_path_constraint(tmp_path
         assert refinement["duration_s"] < refinement["unrefined_duration_s"]
 
 
+@pytest.mark.slow
 def test_a_refined_plan_keeps_a_tight_span_bound_or_the_composed_plan_stands(tmp_path):
     """A bound of 5 mm and 1 deg over the lift (con_6 -> con_7), where the constraint alone
     would allow 3 deg: measured on the followed (commanded) motion, the lift within 5 mm
@@ -224,6 +226,7 @@ def _distance_to_polyline(p, points):
     return float(np.min(np.linalg.norm(start + u[:, None] * step - p, axis=1)))
 
 
+@pytest.mark.slow
 def test_a_refined_motion_that_breaks_a_path_constraint_is_refused(tmp_path, monkeypatch):
     """The program made to turn the part 8 deg in the middle of the lift (its own path
     constraint bounds replaced by that; the constraint lets the refinement turn it as far

@@ -64,6 +64,7 @@ def _assert_within(name, rows):
         assert abs(perturbed - duration) <= LARGEST_CHANGE * duration, (name, seed, duration, perturbed)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, seeds", [("transferring", (1, 11)), ("filling_pouring", (13,)), ("assembling", (0,))])
 def test_a_perturbation_of_1e_9_rad_moves_the_refined_duration_by_at_most_2_percent(name, seeds):
     _assert_within(name, _changes(name, seeds))

@@ -63,6 +63,7 @@ def test_a_task_that_plans_is_not_refused():
     assert result.planned and result.search_rounds == 1
 
 
+@pytest.mark.slow
 def test_the_refusal_is_one_line_per_reason_and_the_json_counts_alternatives(tmp_path):
     task = tmp_path / "shelf.yaml"
     task.write_text(shelf_text(-0.15, -0.15))
@@ -206,6 +207,7 @@ def _plan_near_base(seed, *, predict=True):
     return result, len(follows)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed, blocker", [(41, "shoulder_lift_housing"), (82, "elbow straight")])
 def test_compositions_whose_poses_show_the_blocker_are_ruled_out_unfollowed(seed, blocker):
     """Near-base task 41: the shoulder_lift housing (its clearance depends on shoulder_pan

@@ -131,6 +131,7 @@ sys.stdin.readline()
 """
 
 
+@pytest.mark.slow
 def test_library_copy_waits_for_a_writer_of_the_source(tmp_path):
     source = copy_library("paper5", tmp_path / "source").path
     holder = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(source / "library.lock")],

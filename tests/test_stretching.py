@@ -68,6 +68,7 @@ def plan_json(tmp_path, task, library, cost):
     return json.loads(out.read_text()), stdout
 
 
+@pytest.mark.slow
 def test_the_fidelity_cost_keeps_the_short_demonstration_on_its_own_span(recorded_turn, tmp_path):
     task, library = recorded_turn
     document, stdout = plan_json(tmp_path, task, library, "fidelity")
@@ -84,6 +85,7 @@ def test_the_fidelity_cost_keeps_the_short_demonstration_on_its_own_span(recorde
         assert f"  {demo} (con_{j}->con_{k}): largest correction" in stdout
 
 
+@pytest.mark.slow
 def test_the_paper_cost_keeps_eq_31s_choice(recorded_turn, tmp_path):
     """Eq. 31 sees only rotation: the stretched mapping is its cheapest and stays so."""
     task, library = recorded_turn

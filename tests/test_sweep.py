@@ -10,11 +10,11 @@ import json
 import signal
 import subprocess
 import sys
-import time
 
 import pytest
 
 from cli_subprocess import cli_command, cli_env, stderr_lines
+from helpers import line_count, wait_until
 from drake_lfd import cli
 from drake_lfd.cli.app import build_parser
 from drake_lfd.core.resources import scenarios_directory
@@ -84,19 +84,14 @@ def test_a_sweep_on_two_workers_writes_the_rows_and_figures_of_one_process(tmp_p
         assert (parallel / name).read_bytes()[:8] == PNG_MAGIC, name
 
 
-def finished_rows(path):
-    return path.read_text().count("\n") if path.exists() else 0
-
-
 @pytest.mark.slow
 def test_an_interrupted_sweep_resumes_to_the_table_of_an_uninterrupted_one(tmp_path):
     options = ["--trials", 8, "--workers", 2]
     interrupted = tmp_path / "interrupted"
     process = subprocess.Popen(cli_command(*sweep_args(interrupted, *options)), stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True, env=cli_env())
-    deadline = time.monotonic() + 120
-    while finished_rows(interrupted / "sweep.jsonl") < 1 and process.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.01)
+    wait_until(lambda: line_count(interrupted / "sweep.jsonl") >= 1, timeout_s=240, while_running=process,
+               interval_s=0.01)
     assert process.poll() is None, "the sweep ended before its first row was on disk"
     process.send_signal(signal.SIGINT)
     stdout, stderr = process.communicate(timeout=60)
@@ -181,10 +176,8 @@ def test_a_trial_cluster_started_early_serves_two_runs_like_one_process_and_ends
     assert first == outcomes(reachable, workers=1) and [o["success"] for o in first] == [True, True]
     assert second == outcomes(out_of_reach, workers=1) and not any(o["success"] for o in second)
     pids = [pid for pid, _ in after.values()]
-    deadline = time.monotonic() + 10
-    while not all(_gone(pid) for pid in pids) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert all(_gone(pid) for pid in pids), "a worker process outlived its trial cluster"
+    assert wait_until(lambda: all(_gone(pid) for pid in pids), timeout_s=60, interval_s=0.05), \
+        "a worker process outlived its trial cluster"
     with pytest.raises(RuntimeError, match="closed"):
         cluster.client()
 

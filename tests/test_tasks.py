@@ -10,7 +10,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 import drake_lfd.core.tasks as tasks
 import drake_lfd.io.task_files as mut
-from drake_lfd.io.yaml_checks import angle_from_text
+from drake_lfd.io.yaml_values import angle_from_text
 from drake_lfd.core.errors import InputError
 
 DATA = Path(__file__).parent / "data"
@@ -285,7 +285,7 @@ def test_the_tool_direction_table_of_task_files_rst():
     axis (out of the flange) by forward kinematics points the stated way."""
     import re
 
-    from drake_lfd.io.yaml_checks import angle_from_text
+    from drake_lfd.io.yaml_values import angle_from_text
     from drake_lfd.robot.initial_ik import initial_configuration_candidates
     from drake_lfd.robot.kinematics import UR5eKinematics
 

@@ -77,7 +77,7 @@ from drake_lfd.io.library import (
 from drake_lfd.io.library_manifest import check_demo_name
 from drake_lfd.io.pose_records import pose_json_from_rigid_transform
 from drake_lfd.io.strict_json import strict_json_text
-from drake_lfd.io.yaml_checks import angle_from_text
+from drake_lfd.io.yaml_values import angle_from_text
 
 __all__ = [
     "SUMMARY_FRACTIONS",

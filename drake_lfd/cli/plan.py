@@ -14,7 +14,7 @@ from drake_lfd.cli.argument_checks import prepare_output, require_seed
 from drake_lfd.cli.shared_options import planning_parent
 from drake_lfd.cli.startup import interrupts_deferred
 from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, EXIT_NO_EXECUTABLE_PLAN, InputError
-from drake_lfd.io.task_schema import check_task_file
+from drake_lfd.io.task_checks import precheck_task_file
 
 
 __all__ = ["add_parser", "load_policy_for", "planning_options_of", "request_script_path", "run"]
@@ -93,7 +93,7 @@ def run(args) -> int:
     require_seed(args.seed)
     prepare_output(args.json, "--json")
     prepare_output(args.request_script, "--request-script")
-    check_task_file(args.task)  # a missing file or a typo'd key, before Drake loads
+    precheck_task_file(args.task)  # a missing file, a typo'd key, a value out of range: before Drake loads
     with interrupts_deferred():
         import numpy as np
 

@@ -21,7 +21,7 @@ from drake_lfd.core.errors import EXIT_DEMONSTRATION_REQUESTED, EXIT_NO_EXECUTAB
 from drake_lfd.cli.plan import load_policy_for, planning_options_of
 from drake_lfd.cli.shared_options import planning_parent, workers_of, workers_parent
 from drake_lfd.cli.startup import interrupts_deferred
-from drake_lfd.io.task_schema import check_task_file
+from drake_lfd.io.task_checks import precheck_people_file, precheck_task_file
 
 
 __all__ = ["add_parser", "run", "CONTROLLER_CHOICES"]
@@ -83,7 +83,10 @@ def run(args) -> int:
     prepare_output(args.json, "--json")
     prepare_output(args.html, "--html")
     prepare_output(args.figures, "--figures", folder=True)
-    check_task_file(args.task)  # a missing file or a typo'd key, before Drake loads
+    # Every problem the files' text shows (a missing file, a typo'd key, a value out of
+    # range), before Drake loads; the people file's when the task file's were all checked.
+    if precheck_task_file(args.task) and args.people:
+        precheck_people_file(args.people)
     with interrupts_deferred():
         from drake_lfd.io.library import Library, check_end_effector_frame, library_features
         from drake_lfd.cli.progress import ProgressBar

@@ -22,7 +22,7 @@ from drake_lfd.cli.startup import interrupts_deferred
 from drake_lfd.core.errors import InputError
 from drake_lfd.io.atomic_files import fsync_directory
 from drake_lfd.io.json_lines import JsonLinesFile, read_json_lines
-from drake_lfd.io.task_schema import check_task_file
+from drake_lfd.io.task_checks import precheck_task_file
 
 __all__ = ["add_parser", "runner_options_of", "settings_options_of", "run",
            "SWEEP_ROWS", "SUMMARY"]
@@ -108,7 +108,7 @@ def run(args) -> int:
     if args.workers is not None:
         require_at_least(args.workers, 1, "--workers")
     out = prepare_output(args.out, "--out", folder=True)
-    check_task_file(args.task)  # a missing file or a typo'd key, before Drake loads
+    precheck_task_file(args.task)  # a missing file, a typo'd key, a value out of range: before Drake loads
     with interrupts_deferred():
         from drake_lfd.cli.progress import ProgressBar
         from drake_lfd.core.tasks import draw_trial

@@ -40,6 +40,9 @@ The modules:
   codes.
 * ``option_values``: the closed sets and defaults of user options (planners, costs,
   workers), plain Python for the command line.
+* ``task_terms``: the closed sets and bounds a task is made of (path-constraint kinds,
+  override policies, the fewest critical configurations), plain Python for the checks
+  of a task file before Drake loads.
 * ``resources``: where the shipped data lives (the UR5e model, the paper's scenarios).
 * ``network_policy``: Drake's network switch, ``DRAKE_ALLOW_NETWORK``, read as Drake
   reads it.

@@ -29,6 +29,8 @@ import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 
 from drake_lfd.core.read_only_arrays import read_only_array
+# The override policies (plain Python, so a people file is checked before Drake loads).
+from drake_lfd.core.task_terms import POLICIES, SSM_POLICY, STOP_ONLY_POLICY
 
 __all__ = [
     "BodySize", "Waypoint", "Reach", "ScriptedPath", "RecordedTrack", "Person", "CapsulePose",
@@ -48,11 +50,6 @@ CAPSULE_NAMES = ("torso", "head", "left_arm", "right_arm")
 #: The keypoints of a recorded track, in the CSV's column order (each as x, y, z in W, m).
 TRACK_KEYPOINTS = ("pelvis", "neck", "head", "left_shoulder", "left_hand", "right_shoulder", "right_hand")
 
-#: The override policies: ISO/TS 15066 speed and separation monitoring, or a safety
-#: scanner's fixed radius (stop when anyone is inside it, resume when clear).
-SSM_POLICY = "speed_and_separation"
-STOP_ONLY_POLICY = "stop_only"
-POLICIES = (SSM_POLICY, STOP_ONLY_POLICY)
 
 
 @dataclasses.dataclass(frozen=True)

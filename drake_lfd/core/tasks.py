@@ -32,6 +32,8 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from drake_lfd.core.errors import InputError
 from drake_lfd.core.read_only_arrays import read_only_array
+# Plain Python, so a task file is checked against them before Drake loads.
+from drake_lfd.core.task_terms import MIN_CRITICAL_CONFIGURATIONS, PATH_CONSTRAINT_KINDS
 
 if TYPE_CHECKING:
     from drake_lfd.core.timing import TimingLimits
@@ -59,8 +61,6 @@ __all__ = [
 ]
 
 DEFAULT_ANGLE_GRID_DEG = 15.0
-MIN_CRITICAL_CONFIGURATIONS = 2
-PATH_CONSTRAINT_KINDS = ("orientation",)
 #: How far ``--refine`` may move E from the composed path where the task file does not
 #: say (docs/method.rst, Refinement by trajectory optimization, measures the trade-off).
 DEFAULT_REFINEMENT_POSITION_M = 0.15

@@ -8,13 +8,23 @@ The modules:
 
 * ``task_files``: task files, the YAML form of a task, read and checked.
 * ``task_schema``: a task file's keys and the check of its structure, without Drake.
+* ``task_checks``: a task file's values checked without Drake, and the command line's
+  check of a task or people file before Drake loads.
 * ``simulation_config``: the typed ``simulation:`` block: station, controller (the
   default ``compiled`` one or the baseline's ``drake`` / ``pseudo_inverse``), monitor,
   logger, planner system.
+* ``simulation_schema``: the ``simulation:`` block's own keys and its range checks,
+  without Drake.
 * ``guidance_scripts``: the YAML scripts of ``drake-lfd record``.
-* ``yaml_checks``: checks shared by the YAML readers.
+* ``yaml_checks``: reading the YAML files: syntax, nesting, duplicated keys, the
+  structure against the Spec dataclasses, loading.
+* ``yaml_values``: a YAML file's values converted and checked one by one (numbers,
+  coordinates, angles, poses).
 * ``people_files``: people in the cell and speed and separation monitoring (``people:``,
   ``collaboration:``; ``simulate --people``), read and checked.
+* ``people_schema``: the keys of people, ``collaboration:`` and people files, without
+  Drake.
+* ``people_checks``: people's and ``collaboration:`` values checked without Drake.
 * ``demonstration_logs``: UR5e joint logs as RTDE CSV, read, checked and written.
 * ``rtde_logs``: full RTDE recordings, the TCP-offset check against ``actual_TCP_pose``.
 * ``rosbag_logs``: joint logs from ROS 1 and ROS 2 bags (``sensor_msgs/JointState``).

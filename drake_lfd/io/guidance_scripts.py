@@ -52,7 +52,8 @@ from drake_lfd.core.guidance import (
 )
 # The YAML checks (schema check naming the exact field, duplicate keys refused, angle
 # spellings) are shared with task files, so scripts and tasks report problems alike.
-from drake_lfd.io.yaml_checks import PoseSpec, Scalar, finite, load_spec, pose, read_text, required, vector
+from drake_lfd.io.yaml_checks import PoseSpec, Scalar, load_spec, read_text, required
+from drake_lfd.io.yaml_values import finite, pose, vector
 
 __all__ = [
     "request_guidance_yaml",

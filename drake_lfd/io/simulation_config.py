@@ -44,6 +44,14 @@ from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pydrake.visualization import VisualizationConfig
 
 from drake_lfd.core.errors import InputError
+# The closed sets of the block's words and its range checks are plain Python (the command
+# line checks a block before Drake loads), stated there once.
+from drake_lfd.io.simulation_schema import (
+    COMPILED_METHOD,
+    CONTROLLER_METHODS,
+    GRAVITY_COMPENSATIONS,
+    check_simulation_values,
+)
 from drake_lfd.robot.differential_ik_law import (
     DEFAULT_POSITION_GAIN,
     DEFAULT_TIME_STEP_S,
@@ -85,15 +93,6 @@ DEFAULT_CHECK_PERIOD_S = 0.05
 # tolerances, at several times the speed; benchmarks/bench_closed_loop.py).
 STATION_TIME_STEP_S = 1e-3
 CLOSED_LOOP_TIME_STEP_S = 5e-3
-
-# The controller methods: the compiled joint-space tracker (the default; Drake's C++
-# systems, ``systems/joint_trajectory_controller.py``), and the Python task-space
-# controller with Drake's differential-IK law or the paper's pseudo-inverse (Eq. 35-38).
-COMPILED_METHOD = "compiled"
-
-# How the drive carries the arm's weight (StationConfig.gravity_compensation).
-GRAVITY_COMPENSATIONS = ("inverse_dynamics", "arm_weightless")
-CONTROLLER_METHODS = (COMPILED_METHOD, "drake", "pseudo_inverse")
 
 # The discrete contact approximations that support the drive's PD-controlled actuators
 # (with "tamsi", Drake's continuous-era solver, they would silently do nothing).
@@ -415,51 +414,12 @@ class PipelineConfig(_PicklableStructs):
             for f in dataclasses.fields(self))
 
     def checked(self, *, file: str | None = None) -> "PipelineConfig":
-        """Itself after range checks (positive periods, six gains, known method), with
-        the drive's command period tied to the controller's; raises InputError."""
-        def positive(value, field):
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise InputError(f"must be a finite number > 0, got {value!r}", file=file,
-                                 field=f"simulation.{field}")
-
-        positive(self.station.time_step, "station.time_step")
-        _check_plant_config(self.station.plant, file)
-        if self.station.gravity_compensation not in GRAVITY_COMPENSATIONS:
-            raise InputError(f"must be one of {', '.join(GRAVITY_COMPENSATIONS)}, got "
-                             f"{self.station.gravity_compensation!r}", file=file,
-                             field="simulation.station.gravity_compensation")
-        _check_simulator_config(self.simulator, file)
-        positive(self.controller.time_step, "controller.time_step")
-        positive(self.monitor.period, "monitor.period")
-        positive(self.planner.check_period, "planner.check_period")
-        for name in ("elbow_margin", "wrist_margin"):
-            value = getattr(self.joint_check, name)
-            if not (isinstance(value, (int, float)) and 0.0 <= value < 1.0):
-                raise InputError(f"must be a number in [0, 1), got {value!r}", file=file,
-                                 field=f"simulation.joint_check.{name}")
-        for name in ("shoulder_margin_m", "clearance_m"):
-            value = getattr(self.joint_check, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0.0):
-                raise InputError(f"must be a finite number >= 0, got {value!r}", file=file,
-                                 field=f"simulation.joint_check.{name}")
-        positive(self.log_period, "log_period")
-        positive(self.station.visualizer_publish_period, "station.visualization.publish_period")
-        positive(self.station.drive.gear_ratio, "station.drive.gear_ratio")
-        if not (math.isfinite(self.settle_s) and self.settle_s >= 0):
-            raise InputError(f"must be a finite number >= 0, got {self.settle_s!r}", file=file,
-                             field="simulation.settle_s")
-        if self.controller.method not in CONTROLLER_METHODS:
-            raise InputError(f"must be one of {', '.join(repr(m) for m in CONTROLLER_METHODS)}, "
-                             f"got {self.controller.method!r}",
-                             file=file, field="simulation.controller.method")
-        if not 0 < self.controller.velocity_limit_fraction <= 1:
-            raise InputError("must be in (0, 1]", file=file, field="simulation.controller.velocity_limit_fraction")
-        drive = self.station.drive
-        for name in ("proportional_gains", "derivative_gains", "rotor_inertia_kg_m2"):
-            values = getattr(drive, name)
-            if len(values) != 6 or not all(math.isfinite(v) and v >= 0 for v in values):
-                raise InputError("must be six finite numbers >= 0", file=file,
-                                 field=f"simulation.station.drive.{name}")
+        """Itself after the range checks of
+        :func:`~drake_lfd.io.simulation_schema.check_simulation_values` (positive periods,
+        six gains, known method; Drake judges its structs), with the drive's command period
+        tied to the controller's; raises InputError."""
+        check_simulation_values(self, file=file, judge_plant=lambda: _check_plant_config(self.station.plant, file),
+                                judge_simulator=lambda: _check_simulator_config(self.simulator, file))
         return dataclasses.replace(
             self, station=dataclasses.replace(self.station, command_period=self.controller.time_step))
 

@@ -2,8 +2,9 @@
 
 A task file is YAML, loaded with ``pydrake.common.yaml.yaml_load_typed`` into the
 ``*Spec`` dataclasses of :mod:`drake_lfd.io.task_schema` (unknown keys are errors; that
-module checks a file's structure without Drake), then checked value by value into
-the :class:`~drake_lfd.core.tasks.Task` of :mod:`drake_lfd.core.tasks` (Eq. 10), whose
+module checks a file's structure without Drake), then checked value by value (by
+:mod:`drake_lfd.io.task_checks`, in plain Python) and made the
+:class:`~drake_lfd.core.tasks.Task` of :mod:`drake_lfd.core.tasks` (Eq. 10), whose
 :func:`~drake_lfd.core.tasks.draw_trial` makes each evaluation trial. The format is
 documented for users in docs/task_files.rst.
 
@@ -87,17 +88,12 @@ Not for: the task types themselves, drawing trials or angle grids (all in
 """
 
 import dataclasses
-import math
-import re
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
-from drake_lfd.core.errors import InputError
+from drake_lfd.core.people import CollaborationParameters
 from drake_lfd.core.tasks import (
-    MIN_CRITICAL_CONFIGURATIONS,
-    PATH_CONSTRAINT_KINDS,
     Box,
     CriticalConfiguration,
     DeviationBound,
@@ -110,22 +106,18 @@ from drake_lfd.core.timing import TimingLimits
 from drake_lfd.core.tool import ToolShape
 
 from drake_lfd.io import task_schema
-from drake_lfd.io.people_files import CollaborationSpec, PersonSpec, collaboration_from_spec, people_from_specs
+from drake_lfd.io.people_files import RECORD_JUDGE, people_records
 from drake_lfd.io.simulation_config import PipelineConfig
-
-# The YAML checks (schema, duplicate keys, angle spellings) are shared with guidance
-# scripts, so both report problems alike.
-from drake_lfd.io.yaml_checks import (
-    angle,
-    coordinate,
-    finite,
-    load_spec,
-    pose,
-    positive as _positive,
-    read_text,
-    unique_name,
-    vector,
+# The value checks are plain Python (task_checks.py), so the command line runs them before
+# Drake loads; the limits are theirs.
+from drake_lfd.io.task_checks import (
+    MAX_BOXES,
+    MAX_CRITICAL_CONFIGURATIONS,
+    MAX_TOOL_SHAPES,
+    MIN_ANGLE_GRID_DEG,
+    check_task_values,
 )
+from drake_lfd.io.yaml_checks import load_spec, read_text
 
 # The Spec dataclasses other than TaskSpec are io/task_schema.py's.
 __all__ = [
@@ -140,19 +132,6 @@ __all__ = [
     "MIN_ANGLE_GRID_DEG",
 ]
 
-#: Most critical configurations a task may have: planning time grows with the square of
-#: their number (100 fixed ones plan in seconds on one core, 200 take minutes).
-MAX_CRITICAL_CONFIGURATIONS = 100
-#: Most obstacles, and most safety shells, a task may have: every one is a clearance
-#: query per robot geometry at every step the plan-time check and the monitor take (a
-#: task with thousands planned for minutes at about 1 GB).
-MAX_BOXES = 100
-#: Most shapes of a ``tool:`` block (each is queried against every box at every step).
-MAX_TOOL_SHAPES = 20
-#: Finest ``angle_grid_deg``: finer grids are far over the planning limits anyway
-#: (planning/problem_size.py), and a grid of 1e-320 deg would be 0 rad.
-MIN_ANGLE_GRID_DEG = 1e-3
-
 # No ``from __future__ import annotations`` here: yaml_load_typed reads the Spec fields'
 # types at run time and needs them as types, not strings.
 
@@ -162,17 +141,13 @@ MIN_ANGLE_GRID_DEG = 1e-3
 # checks a file's structure before Drake loads); the loader's TaskSpec types the
 # simulation: block as the Drake structs it is.
 @dataclasses.dataclass
-class TaskSpec(task_schema.TaskSpec):
+class TaskSpec(task_schema.TypedTaskSpec):
     """The whole task file (see the module docstring): the keys of
-    :class:`drake_lfd.io.task_schema.TaskSpec`, its ``simulation:`` block a
-    :class:`~drake_lfd.io.simulation_config.PipelineConfig`, its ``people:`` and
-    ``collaboration:`` blocks :mod:`~drake_lfd.io.people_files`' records."""
+    :class:`drake_lfd.io.task_schema.TypedTaskSpec` (``people:`` and ``collaboration:``
+    :mod:`~drake_lfd.io.people_schema`'s records), its ``simulation:`` block a
+    :class:`~drake_lfd.io.simulation_config.PipelineConfig`."""
 
     simulation: PipelineConfig = dataclasses.field(default_factory=PipelineConfig)
-    # People in the cell and speed and separation monitoring (io/people_files.py).
-    people: list[PersonSpec] = dataclasses.field(default_factory=list)
-    collaboration: Optional[CollaborationSpec] = dataclasses.field(
-        default=None, metadata={"expected": "a mapping of collaboration keys ({} for the defaults)"})
 
 
 # ----------------------------------------------------------------------------- loading
@@ -196,65 +171,32 @@ def task_spec_from_text(text, *, file=None):
     return load_spec(text, TaskSpec, file=file, **task_schema.TASK_FILE_WORDS)
 
 
-def _interval(values, *, file, field, convert, context=""):
-    if len(values) != 2:
-        raise InputError(
-            f"{context}expected [lower, upper], got {len(values)} values", file=file, field=field
-        )
-    lower = convert(values[0], file=file, field=f"{field}[0]")
-    upper = convert(values[1], file=file, field=f"{field}[1]")
-    if lower > upper:
-        raise InputError(f"{context}lower {lower:g} > upper {upper:g}", file=file, field=field)
-    return lower, upper
+def _pose(values):
+    p, euler = values
+    return rigid_transform_from_euler_zyx(np.array(p), np.array(euler))
 
 
-_VARIABLE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+def _box(values):
+    name, centre, size, euler = values
+    rotation = rigid_transform_from_euler_zyx(np.zeros(3), np.array(euler)).rotation()
+    return Box(name=name, centre=np.array(centre), size=np.array(size), rotation=rotation)
 
 
-def _box(spec, *, file, field):
-    if not spec.name:
-        raise InputError("a box needs a non-empty name", file=file, field=f"{field}.name")
-    centre = vector(spec.centre, 3, file=file, field=f"{field}.centre", convert=coordinate)
-    size = vector(spec.size, 3, file=file, field=f"{field}.size", convert=coordinate)
-    for axis in range(3):
-        if not size[axis] > 0.0:
-            raise InputError(
-                f"box edge lengths must be > 0, got {size[axis]:g}", file=file, field=f"{field}.size[{axis}]"
-            )
-    euler = vector(spec.euler_zyx, 3, file=file, field=f"{field}.euler_zyx", convert=angle)
-    rotation = rigid_transform_from_euler_zyx(np.zeros(3), euler).rotation()
-    return Box(name=spec.name, centre=centre, size=size, rotation=rotation)
+def _tool_shape(values):
+    if values[0] == "box":
+        _, name, size, pose = values
+        return ToolShape.box(name, np.array(size), _pose(pose))
+    _, name, radius, length, pose = values
+    return ToolShape.cylinder(name, radius, length, _pose(pose))
 
 
-def _tool(specs, *, file):
-    """The ``tool:`` block's shapes (None when the block is absent: the default tool)."""
-    if specs is None:
-        return None
-    if len(specs) > MAX_TOOL_SHAPES:
-        raise InputError(f"a tool has at most {MAX_TOOL_SHAPES} shapes, got {len(specs):,}", file=file, field="tool")
-    shapes, names = [], {}
-    for index, spec in enumerate(specs):
-        field = f"tool[{index}]"
-        unique_name(spec.name, names, what="tool shape", file=file, field=field)
-        X_tool0_S = pose(spec, file=file, field=field)
-        has_cylinder = spec.cylinder.radius != 0.0 or spec.cylinder.length != 0.0
-        if bool(spec.box) == has_cylinder:
-            raise InputError("give exactly one of box: [x, y, z] or cylinder: {radius: r, length: l}",
-                             file=file, field=field)
-        if spec.box:
-            size = vector(spec.box, 3, file=file, field=f"{field}.box", convert=coordinate)
-            for axis in range(3):
-                _positive(size[axis], file=file, field=f"{field}.box[{axis}]")
-            shapes.append(ToolShape.box(spec.name, size, X_tool0_S))
-        else:
-            radius = _positive(spec.cylinder.radius, file=file, field=f"{field}.cylinder.radius")
-            length = _positive(spec.cylinder.length, file=file, field=f"{field}.cylinder.length")
-            shapes.append(ToolShape.cylinder(spec.name, radius, length, X_tool0_S))
-    return tuple(shapes)
+def _deviation(values):
+    return None if values is None else DeviationBound(**values)
 
 
 def task_from_spec(spec, *, file=None):
-    """Checks the values of a :class:`TaskSpec` and returns the :class:`Task`.
+    """Checks the values of a :class:`TaskSpec` (:func:`~drake_lfd.io.task_checks.check_task_values`)
+    and returns the :class:`Task`.
 
     Raises
     ------
@@ -262,217 +204,35 @@ def task_from_spec(spec, *, file=None):
         Non-finite numbers, ``lower > upper``, fewer than 2 critical configurations,
         unknown variables, non-positive box sizes, constraint numbers out of range.
     """
-    name = spec.name or (Path(file).stem if file is not None else "task")
-    X_WB = pose(spec.X_WB, file=file, field="X_WB")
-    X_tool0_E = pose(spec.X_tool0_E, file=file, field="X_tool0_E")
-    grid = finite(spec.angle_grid_deg, file=file, field="angle_grid_deg")
-    if not MIN_ANGLE_GRID_DEG <= grid <= 360.0:
-        raise InputError(f"must be in [{MIN_ANGLE_GRID_DEG:g}, 360] degrees, got {grid:g}", file=file,
-                         field="angle_grid_deg")
-
-    variables = {}
-    for variable, values in spec.variables.items():
-        field = f"variables.{variable}"
-        if not _VARIABLE_NAME.match(variable) or variable == "pi":
-            raise InputError(
-                f"{variable!r} is not a variable name (letters, digits, '_'; not 'pi')", file=file, field=field
-            )
-        variables[variable] = _interval(values, file=file, field=field, convert=coordinate)
-
-    cons = []
-    specs = spec.critical_configurations
-    if len(specs) < MIN_CRITICAL_CONFIGURATIONS:
-        raise InputError(
-            f"a task needs at least {MIN_CRITICAL_CONFIGURATIONS} critical configurations, got {len(specs)}",
-            file=file,
-            field="critical_configurations",
-        )
-    if len(specs) > MAX_CRITICAL_CONFIGURATIONS:
-        raise InputError(
-            f"a task has at most {MAX_CRITICAL_CONFIGURATIONS} critical configurations, got {len(specs)} "
-            "(planning time grows with the square of their number); split the task",
-            file=file,
-            field="critical_configurations",
-        )
-    for index, con_spec in enumerate(specs):
-        base = f"critical_configurations[{index}]"
-        context = f"con_{index + 1}: "
-        if len(con_spec.p) != 3:
-            raise InputError(f"{context}expected [x, y, z], got {len(con_spec.p)} values", file=file, field=f"{base}.p")
-        if len(con_spec.euler_zyx) != 3:
-            raise InputError(
-                f"{context}expected [yaw, pitch, roll], got {len(con_spec.euler_zyx)} values",
-                file=file,
-                field=f"{base}.euler_zyx",
-            )
-        p_lower, p_upper, p_variables = [], [], []
-        for axis, entry in enumerate(con_spec.p):
-            field = f"{base}.p[{axis}]"
-            variable = None
-            if isinstance(entry, list):
-                lower, upper = _interval(entry, file=file, field=field, convert=coordinate, context=context)
-            elif isinstance(entry, str) and _VARIABLE_NAME.match(entry) and entry not in ("nan", "inf"):
-                if entry not in variables:
-                    known = ", ".join(variables) or "none"
-                    raise InputError(
-                        f"{context}unknown variable {entry!r} (variables: {known})", file=file, field=field
-                    )
-                variable = entry
-                lower, upper = variables[entry]
-            else:
-                lower = upper = coordinate(entry, file=file, field=field)
-            p_lower.append(lower)
-            p_upper.append(upper)
-            p_variables.append(variable)
-        euler_lower, euler_upper = [], []
-        for axis, entry in enumerate(con_spec.euler_zyx):
-            field = f"{base}.euler_zyx[{axis}]"
-            if isinstance(entry, list):
-                lower, upper = _interval(entry, file=file, field=field, convert=angle, context=context)
-            else:
-                if isinstance(entry, str) and entry in variables:
-                    raise InputError(
-                        f"{context}variables are for positions; write a bounded angle as "
-                        "[lower, upper] (the planner chooses it per configuration)",
-                        file=file,
-                        field=field,
-                    )
-                lower = upper = angle(entry, file=file, field=field)
-            euler_lower.append(lower)
-            euler_upper.append(upper)
-        cons.append(
-            CriticalConfiguration(
-                p_lower=p_lower,
-                p_upper=p_upper,
-                p_variables=p_variables,
-                euler_zyx_lower=euler_lower,
-                euler_zyx_upper=euler_upper,
-                stop=con_spec.stop,
-            )
-        )
-
-    boxes = {}
-    for group, specs_of_group in (("obstacles", spec.obstacles), ("safety_shells", spec.safety_shells)):
-        if len(specs_of_group) > MAX_BOXES:
-            raise InputError(f"a task has at most {MAX_BOXES} {group.replace('_', ' ')}, got {len(specs_of_group):,} "
-                             "(each is a clearance query at every step of the check and the run)",
-                             file=file, field=group)
-    obstacles = tuple(_box(b, file=file, field=f"obstacles[{i}]") for i, b in enumerate(spec.obstacles))
-    shells = tuple(_box(b, file=file, field=f"safety_shells[{i}]") for i, b in enumerate(spec.safety_shells))
-    for group, items in (("obstacles", obstacles), ("safety_shells", shells)):
-        for index, box in enumerate(items):
-            if box.name in boxes:
-                raise InputError(
-                    f"box name {box.name!r} is used by {boxes[box.name]} already", file=file, field=f"{group}[{index}].name"
-                )
-            boxes[box.name] = f"{group}[{index}]"
-
-    constraints = []
-    for index, constraint in enumerate(spec.path_constraints):
-        base = f"path_constraints[{index}]"
-        if constraint.kind not in PATH_CONSTRAINT_KINDS:
-            raise InputError(
-                f"unknown kind {constraint.kind!r} (known: {', '.join(PATH_CONSTRAINT_KINDS)})",
-                file=file,
-                field=f"{base}.kind",
-            )
-        first, last = _between(constraint.between, len(cons), file=file, field=f"{base}.between")
-        euler = vector(constraint.euler_zyx, 3, file=file, field=f"{base}.euler_zyx", convert=angle)
-        tolerance = finite(constraint.tolerance_deg, file=file, field=f"{base}.tolerance_deg")
-        if not 0.0 < tolerance <= 180.0:
-            raise InputError(
-                f"must be in (0, 180] degrees, got {tolerance:g}", file=file, field=f"{base}.tolerance_deg"
-            )
-        bound = _deviation(constraint.max_deviation.position_m, constraint.max_deviation.rotation_deg,
-                           file=file, field=f"{base}.max_deviation")
-        constraints.append(
-            PathConstraint(
-                kind=constraint.kind,
-                con_from=first,
-                con_to=last,
-                euler_zyx=euler,
-                tolerance_rad=math.radians(tolerance),
-                max_deviation=None if bound == DeviationBound() else bound,
-            )
-        )
-
+    checked = check_task_values(spec, file=file, judge=RECORD_JUDGE)
+    optional = {} if checked.angle_grid_deg is None else {"angle_grid_deg": checked.angle_grid_deg}
+    refinement = None
+    if checked.refinement is not None:
+        whole, spans = checked.refinement
+        refinement = RefinementBounds(max_deviation=DeviationBound(**whole),
+                                      spans=tuple(DeviationBound(**span) for span in spans))
     return Task(
-        name=name,
-        critical_configurations=tuple(cons),
-        X_WB=X_WB,
-        X_tool0_E=X_tool0_E,
-        angle_grid_deg=grid,
-        variables=variables,
-        obstacles=obstacles,
-        safety_shells=shells,
-        path_constraints=tuple(constraints),
-        description=spec.description,
+        name=checked.name,
+        critical_configurations=tuple(CriticalConfiguration(**con) for con in checked.critical_configurations),
+        X_WB=_pose(checked.X_WB),
+        X_tool0_E=_pose(checked.X_tool0_E),
+        variables=checked.variables,
+        obstacles=tuple(_box(box) for box in checked.obstacles),
+        safety_shells=tuple(_box(box) for box in checked.safety_shells),
+        path_constraints=tuple(
+            PathConstraint(**dict(constraint, euler_zyx=np.array(constraint["euler_zyx"]),
+                                  max_deviation=_deviation(constraint["max_deviation"])))
+            for constraint in checked.path_constraints),
+        description=checked.description,
         file=None if file is None else str(file),
-        simulation=spec.simulation.checked(file=file),
-        tool=_tool(spec.tool, file=file),
-        timing=_timing(spec.timing, file=file),
-        people=people_from_specs(spec.people, file=file),
-        collaboration=None if spec.collaboration is None else collaboration_from_spec(spec.collaboration, file=file),
-        refinement=_refinement(spec.refinement, len(cons), file=file),
+        simulation=checked.simulation,
+        tool=None if checked.tool is None else tuple(_tool_shape(shape) for shape in checked.tool),
+        timing=TimingLimits(**checked.timing),
+        people=people_records(checked.people),
+        collaboration=None if checked.collaboration is None else CollaborationParameters(**checked.collaboration),
+        refinement=refinement,
+        **optional,
     )
-
-
-def _between(values, count, *, file, field):
-    """``between: [j, k]``: two critical configuration numbers, ``1 <= j < k <= count``."""
-    if len(values) != 2:
-        raise InputError(f"expected [j, k] (critical configuration numbers), got {len(values)} values",
-                         file=file, field=field)
-    first, last = (int(v) for v in values)
-    if not 1 <= first < last <= count:
-        raise InputError(f"[{first}, {last}] must satisfy 1 <= j < k <= {count} (con numbers start at 1)",
-                         file=file, field=field)
-    return first, last
-
-
-def _deviation(position_m, rotation_deg, *, file, field, con_from=None, con_to=None):
-    """A checked bound on refinement's deviation: ``position_m`` > 0 (metres, within
-    reach), ``rotation_deg`` in (0, 180]; either may be absent (None)."""
-    position = rotation = None
-    if position_m is not None:
-        position = _positive(coordinate(position_m, file=file, field=f"{field}.position_m"), file=file,
-                             field=f"{field}.position_m")
-    if rotation_deg is not None:
-        degrees = finite(rotation_deg, file=file, field=f"{field}.rotation_deg")
-        if not 0.0 < degrees <= 180.0:
-            raise InputError(f"must be in (0, 180] degrees, got {degrees:g}", file=file, field=f"{field}.rotation_deg")
-        rotation = math.radians(degrees)
-    return DeviationBound(position_m=position, rotation_rad=rotation, con_from=con_from, con_to=con_to)
-
-
-def _refinement(spec, count, *, file):
-    """The checked ``refinement:`` block (None when it sets nothing)."""
-    whole = _deviation(spec.max_deviation.position_m, spec.max_deviation.rotation_deg, file=file,
-                       field="refinement.max_deviation")
-    spans = []
-    for index, span in enumerate(spec.spans):
-        field = f"refinement.spans[{index}]"
-        first, last = _between(span.between, count, file=file, field=f"{field}.between")
-        if span.position_m is None and span.rotation_deg is None:
-            raise InputError("give position_m, rotation_deg or both", file=file, field=field)
-        spans.append(_deviation(span.position_m, span.rotation_deg, file=file, field=field, con_from=first,
-                                con_to=last))
-    if whole == DeviationBound() and not spans:
-        return None
-    return RefinementBounds(max_deviation=whole, spans=tuple(spans))
-
-
-def _timing(spec, *, file):
-    """The checked ``timing:`` block as :class:`~drake_lfd.core.timing.TimingLimits`."""
-    values = {}
-    for name in ("joint_speed_rad_s", "joint_acceleration_rad_s2", "tool_speed_m_s"):
-        values[name] = _positive(getattr(spec, name), file=file, field=f"timing.{name}")
-    if spec.tool_acceleration_m_s2 is not None:
-        values["tool_acceleration_m_s2"] = _positive(spec.tool_acceleration_m_s2, file=file,
-                                                     field="timing.tool_acceleration_m_s2")
-    fraction = finite(spec.limit_fraction, file=file, field="timing.limit_fraction")
-    if not 0.0 < fraction <= 1.0:
-        raise InputError(f"must be in (0, 1], got {fraction:g}", file=file, field="timing.limit_fraction")
-    return TimingLimits(limit_fraction=fraction, **values)
 
 
 def load_task(path):

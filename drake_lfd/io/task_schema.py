@@ -5,10 +5,12 @@ takes (:mod:`drake_lfd.io.task_files` documents the format and loads it with Dra
 ``yaml_load_typed``). :func:`check_task_file` reads a file and checks it against them
 (YAML syntax, duplicated, unknown or missing keys, values of the wrong kind) without
 importing Drake or numpy, so the command line refuses a typo'd key before it loads
-anything heavy. The ``simulation:`` block is checked here only as a mapping: its schema
-is Drake's own config structs, checked when the file is loaded.
+anything heavy. :class:`TaskSpec` checks the ``simulation:``, ``people:`` and
+``collaboration:`` blocks only as a mapping and lists of mappings; :class:`TypedTaskSpec`
+types them as the loader does (``people_schema.py``, ``simulation_schema.py``). A value
+the file does not give is None where its default belongs to the record it becomes.
 
-Not for: the values' meaning (ranges, ordering, names: :func:`drake_lfd.io.task_files.task_from_spec`).
+Not for: the values' meaning (ranges, ordering, names: ``task_checks.py``).
 """
 
 # No ``from __future__ import annotations`` here: yaml_load_typed reads the Spec fields'
@@ -18,6 +20,8 @@ import dataclasses
 from pathlib import Path
 from typing import Any, Optional, Union
 
+from drake_lfd.io.people_schema import CollaborationSpec, PersonSpec
+from drake_lfd.io.simulation_schema import SimulationSpec
 from drake_lfd.io.yaml_checks import PoseSpec, Scalar, check_yaml_file, read_text, required
 
 __all__ = [
@@ -31,6 +35,7 @@ __all__ = [
     "RefinementSpec",
     "TimingSpec",
     "TaskSpec",
+    "TypedTaskSpec",
     "TASK_FILE_WORDS",
     "check_task_text",
     "check_task_file",
@@ -41,21 +46,9 @@ __all__ = [
 TASK_FILE_WORDS = {"document": "the task file", "keys": "task keys"}
 
 
-# Two defaults live in modules that import Drake (TimingLimits' limits, the angle grid):
-# read when a Spec is made, which is when Drake's loader fills it, never by the check.
-def _timing_default(name):
-    def factory():
-        from drake_lfd.core.timing import TimingLimits
-
-        return getattr(TimingLimits, name)
-
-    return factory
-
-
-def _angle_grid_default():
-    from drake_lfd.core.tasks import DEFAULT_ANGLE_GRID_DEG
-
-    return DEFAULT_ANGLE_GRID_DEG
+# A None default: the file does not say; the record's own default applies (the Task's
+# angle grid, TimingLimits' limits), stated there once.
+_RECORD_DEFAULT: Any = None
 
 
 # A coordinate or angle: a number-like token, or a [lower, upper] list of them.
@@ -152,15 +145,15 @@ class RefinementSpec:
 @dataclasses.dataclass
 class TimingSpec:
     """The ``timing:`` block: the limits the plan's time-optimal timing keeps to
-    (:class:`~drake_lfd.core.timing.TimingLimits`, whose defaults these are)."""
+    (:class:`~drake_lfd.core.timing.TimingLimits`, whose defaults apply where the file is
+    silent)."""
 
-    joint_speed_rad_s: float = dataclasses.field(default_factory=_timing_default("joint_speed_rad_s"))
-    joint_acceleration_rad_s2: float = dataclasses.field(
-        default_factory=_timing_default("joint_acceleration_rad_s2"))
-    tool_speed_m_s: float = dataclasses.field(default_factory=_timing_default("tool_speed_m_s"))
+    joint_speed_rad_s: float = _RECORD_DEFAULT
+    joint_acceleration_rad_s2: float = _RECORD_DEFAULT
+    tool_speed_m_s: float = _RECORD_DEFAULT
     tool_acceleration_m_s2: Optional[float] = dataclasses.field(
         default=None, metadata={"expected": "a number (m/s^2), or absent for none"})
-    limit_fraction: float = dataclasses.field(default_factory=_timing_default("limit_fraction"))
+    limit_fraction: float = _RECORD_DEFAULT
 
 
 @dataclasses.dataclass
@@ -172,7 +165,7 @@ class TaskSpec:
     description: str = ""
     X_WB: PoseSpec = dataclasses.field(default_factory=PoseSpec)
     X_tool0_E: PoseSpec = dataclasses.field(default_factory=PoseSpec)
-    angle_grid_deg: float = dataclasses.field(default_factory=_angle_grid_default)
+    angle_grid_deg: float = _RECORD_DEFAULT
     variables: dict[str, list[Scalar]] = dataclasses.field(default_factory=dict)
     critical_configurations: list[CriticalConfigurationSpec] = required(list)
     obstacles: list[BoxSpec] = dataclasses.field(default_factory=list)
@@ -191,6 +184,20 @@ class TaskSpec:
     # (io/task_files.py's TaskSpec types them); here only as a list and a mapping.
     people: list[dict[str, Any]] = dataclasses.field(default_factory=list)
     collaboration: Optional[dict[str, Any]] = dataclasses.field(
+        default=None, metadata={"expected": "a mapping of collaboration keys ({} for the defaults)"})
+
+
+@dataclasses.dataclass
+class TypedTaskSpec(TaskSpec):
+    """The task file's keys as the loader types them: ``people:`` and ``collaboration:``
+    as :mod:`~drake_lfd.io.people_schema`'s records, ``simulation:`` as
+    :class:`~drake_lfd.io.simulation_schema.SimulationSpec` (the block's own keys; the
+    loader's :class:`drake_lfd.io.task_files.TaskSpec` types it as Drake's structs too).
+    The check before Drake loads (``task_checks.py``) reads a file with it."""
+
+    simulation: SimulationSpec = dataclasses.field(default_factory=SimulationSpec)
+    people: list[PersonSpec] = dataclasses.field(default_factory=list)
+    collaboration: Optional[CollaborationSpec] = dataclasses.field(
         default=None, metadata={"expected": "a mapping of collaboration keys ({} for the defaults)"})
 
 

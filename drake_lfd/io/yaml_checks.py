@@ -1,40 +1,39 @@
-"""Checks for user YAML files read with pydrake's ``yaml_load_typed`` into dataclasses.
+"""Reading user YAML files into Spec dataclasses: syntax, nesting, duplicated keys, structure, loading.
 
-Task files (``task_files.py``) and guidance scripts (``guidance_scripts.py``) are YAML
-loaded with ``pydrake.common.yaml.yaml_load_typed`` into ``*Spec`` dataclasses. Run
-alone, that function names only the leaf of a bad value, and PyYAML silently keeps the
-last of two equal keys. So :func:`load_spec` first reads the raw YAML (refusing duplicated keys)
-and checks it against the Spec types (:func:`check_schema`), and only then calls
-``yaml_load_typed``. Before any of that, the YAML's nesting is checked without
-recursion (at most :data:`MAX_YAML_DEPTH` levels: a file nested 500 deep would
-otherwise exhaust Python's recursion limit), and a value that an explicit tag cannot
-convert (``!!float abc``, ``!!int 0.5``) is refused with its line. :func:`finite`,
-:func:`positive`, :func:`non_negative`, :func:`coordinate`, :func:`angle`, :func:`vector` and :func:`pose` then convert and check
-the values; positions farther than :data:`MAX_COORDINATE_M` from the origin are out of
-any robot's reach and refused (so ``1e300`` can never reach the planner as ``inf``). Every problem becomes one
-:class:`~drake_lfd.core.errors.InputError` that names the file and the field
-(``waypoints[2].euler_zyx[0]``, list indices from 0).
+Task files (``task_files.py``), people files (``people_files.py``) and guidance scripts
+(``guidance_scripts.py``) are YAML loaded with ``pydrake.common.yaml.yaml_load_typed``
+into ``*Spec`` dataclasses. Run alone, that function names only the leaf of a bad value,
+and PyYAML silently keeps the last of two equal keys. So :func:`load_spec` first reads
+the raw YAML (refusing duplicated keys) and checks it against the Spec types
+(:func:`check_schema`), and only then calls ``yaml_load_typed``. Before any of that, the
+YAML's nesting is checked without recursion (at most :data:`MAX_YAML_DEPTH` levels: a
+file nested 500 deep would otherwise exhaust Python's recursion limit), and a value that
+an explicit tag cannot convert (``!!float abc``, ``!!int 0.5``) is refused with its line.
+Every problem becomes one :class:`~drake_lfd.core.errors.InputError` that names the file
+and the field (``waypoints[2].euler_zyx[0]``, list indices from 0); the values are then
+checked one by one by ``yaml_values.py``.
 
 Conventions of the Spec dataclasses: a field made with :func:`required` must be
 present; a field's ``metadata["expected"]`` says in words what a union field accepts;
 angles can be written as numbers, as multiples of pi or in degrees
-(:func:`angle_from_text`); orientations are ``euler_zyx: [yaw, pitch, roll]``,
+(``yaml_values.angle_from_text``); orientations are ``euler_zyx: [yaw, pitch, roll]``,
 ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (docs/method.rst, Conventions;
 :func:`~drake_lfd.core.tasks.rigid_transform_from_euler_zyx`).
 
 Reading and checking the structure (:func:`check_yaml_file`, :func:`check_schema`)
 imports neither Drake nor numpy, so the command line refuses a typo'd key at once;
-Drake is imported when a Spec is loaded (:func:`load_spec`) and a pose built
-(:func:`pose`).
+:func:`plain_load` makes the Spec ``yaml_load_typed`` would, in plain Python, so the
+values are checked before Drake loads too (``task_checks.py``); Drake is imported when
+a Spec is loaded (:func:`load_spec`).
 
-Not for: what a file means (its own module checks that: ranges, ordering, names), nor
-for logs and libraries (``demonstration_logs.py``, ``library.py``).
+Not for: the values (``yaml_values.py``) or what a file means (its own module checks
+that: ranges, ordering, names), nor logs and libraries (``demonstration_logs.py``,
+``library.py``).
 """
 
 # No ``from __future__ import annotations``: :data:`Scalar` is used in the Spec
 # dataclasses' annotations, and yaml_load_typed reads those as types, not as strings.
 import dataclasses
-import math
 import re
 import sys
 import types
@@ -49,11 +48,8 @@ from drake_lfd.core.errors import InputError
 __all__ = [
     "MAX_YAML_DEPTH",
     "MAX_YAML_FILE_BYTES",
-    "MAX_COORDINATE_M",
-    "MAX_ANGLE_RAD",
     "Scalar",
     "required",
-    "unique_name",
     "PoseSpec",
     "UniqueKeyLoader",
     "yaml_error",
@@ -63,14 +59,8 @@ __all__ = [
     "check_yaml_file",
     "kind_of",
     "check_schema",
-    "angle_from_text",
-    "finite",
-    "positive",
-    "non_negative",
-    "coordinate",
-    "angle",
-    "vector",
-    "pose",
+    "NeedsDrake",
+    "plain_load",
 ]
 
 #: Largest YAML file read, in bytes: a task file is a few kilobytes; parsing megabytes
@@ -78,13 +68,6 @@ __all__ = [
 MAX_YAML_FILE_BYTES = 1 << 20
 #: Deepest nesting of mappings and lists a file may have (a task file needs 5).
 MAX_YAML_DEPTH = 32
-#: Largest magnitude of a position coordinate, in metres: ten times a UR5e's reach and
-#: more than any work cell; a larger value is nearly always millimetres or centimetres
-#: written as metres (``450`` for 0.45 m).
-MAX_COORDINATE_M = 10.0
-#: Largest magnitude of an angle, in radians: a full turn. A larger one is nearly always
-#: degrees written without ``deg`` (``-90`` for -pi/2).
-MAX_ANGLE_RAD = 2.0 * math.pi
 
 # One number-like token: a YAML number, or a string such as "-pi/2", "90deg", "1e-3".
 Scalar = Union[float, int, str]
@@ -390,9 +373,9 @@ def check_schema(value, schema, path, file, expected=None):
                 if typing.get_origin(alternative) is list:
                     check_schema(value, alternative, path, file)
                     return
-        elif isinstance(value, dict):  # an optional block: Optional[SomeSpec]
+        elif isinstance(value, dict):  # an optional block: Optional[SomeSpec] or Optional[dict[...]]
             for alternative in alternatives:
-                if dataclasses.is_dataclass(alternative):
+                if dataclasses.is_dataclass(alternative) or typing.get_origin(alternative) is dict:
                     check_schema(value, alternative, path, file)
                     return
         elif any(
@@ -466,153 +449,106 @@ def check_schema(value, schema, path, file, expected=None):
     raise TypeError(f"unsupported schema {schema!r}")
 
 
-# ------------------------------------------------------------------------------ values
-
-_PI_EXPRESSION = re.compile(
-    r"^([+-]?)\s*(\d+(?:\.\d*)?|\.\d+)?\s*\*?\s*pi\s*(?:/\s*(\d+(?:\.\d*)?|\.\d+))?$", re.ASCII
-)
-_DEGREES = re.compile(r"^([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*deg$", re.ASCII)
+# ------------------------------------------------------------------- loading, plainly
 
 
-def _python_only_spelling(text):
-    """Whether ``text`` spells a number only Python's ``float`` reads: an underscore
-    (``0_5``) or any character that is not ASCII (Arabic-Indic or fullwidth digits,
-    Unicode spaces). YAML, C and every other reader refuse those."""
-    return "_" in text or not text.isascii()
+class NeedsDrake(Exception):
+    """Raised by a check in plain Python where only Drake's loader, or a record that
+    imports Drake, can say what comes next (a Drake config struct in the file, a body's
+    proportions, a track file): the early check stops there, and loading the file
+    finds the rest in its own order."""
 
 
-def angle_from_text(text):
-    """The angle written in ``text``, in radians, or None if the text is not an angle.
+_NONE_TYPE = type(None)
 
-    Accepts plain numbers (``"1.5"``), multiples of pi (``"pi"``, ``"-pi/2"``,
-    ``"3*pi/4"``, ``"0.5pi"``) and degrees (``"-90deg"``).
+
+def plain_load(raw, schema):
+    """What ``yaml_load_typed(schema=schema, ...)`` makes of ``raw``, YAML data that
+    :func:`check_schema` accepted against ``schema``, in plain Python.
+
+    The same conversions as Drake's loader for the kinds of fields the Spec dataclasses
+    use: an integer into a float field becomes a float, a numeric string into a float
+    field the float it spells, a whole float into an integer field an integer; unions of
+    numbers and strings keep the value as written; a mapping into a nested Spec updates
+    that Spec's defaults; an absent key keeps its default.
+
+    Raises
+    ------
+    NeedsDrake
+        For anything else (a Drake config struct among the types, or a value Drake's
+        loader would refuse where :func:`check_schema` did not).
     """
-    text = text.strip()
-    if _python_only_spelling(text):
-        return None
     try:
-        return float(text)
-    except ValueError:
-        pass
-    match = _DEGREES.match(text)
-    if match:
-        return math.radians(float(match.group(1)))
-    match = _PI_EXPRESSION.match(text)
-    if match:
-        sign, coefficient, divisor = match.groups()
-        value = math.pi * (float(coefficient) if coefficient else 1.0)
-        if divisor is not None:
-            if float(divisor) == 0.0:
+        return _plain_value(raw, schema, None)
+    except NeedsDrake:
+        raise
+    except Exception as error:  # the loader would judge it: let it
+        raise NeedsDrake(f"{type(error).__name__}: {error}") from None
+
+
+def _plain_value(value, schema, current):
+    if schema in (float, int, str, bool):
+        converted = _plain_scalar(value, schema)
+        if converted is None:
+            raise NeedsDrake(f"{value!r} into {schema.__name__}")
+        return converted
+    origin = typing.get_origin(schema)
+    arguments = typing.get_args(schema)
+    if origin in (Union, types.UnionType):
+        if len(arguments) == 2 and arguments[1] is _NONE_TYPE:  # Optional[X]
+            if value is None:
                 return None
-            value /= float(divisor)
-        return -value if sign == "-" else value
+            (inner,) = arguments[:1]
+            if current is None:
+                current = _plain_default(inner)
+            return _plain_value(value, inner, current)
+        if not isinstance(value, (dict, list)):
+            if type(value) in arguments:
+                return value
+            raise NeedsDrake(f"{value!r} into {schema}")
+        if "_tag" in value:  # the loader reads a variant's tag there
+            raise NeedsDrake("a _tag")
+        inner = arguments[0]
+        inner_origin = typing.get_origin(inner) or inner
+        return _plain_value(value, inner, current if isinstance(current, inner_origin) else _plain_default(inner))
+    if origin is list:
+        (item,) = arguments
+        return [_plain_value(entry, item, _plain_default(item)) for entry in value]
+    if origin is dict:
+        _, item = arguments
+        merged = dict(current or {})
+        for key, entry in value.items():
+            merged[key] = _plain_value(entry, item, merged[key] if key in merged else _plain_default(item))
+        return merged
+    if dataclasses.is_dataclass(schema):
+        instance = current if current is not None else schema()
+        instance = dataclasses.replace(instance)  # the loader merges into a copy
+        hints = typing.get_type_hints(schema)
+        for field in dataclasses.fields(schema):
+            if field.name in value:
+                setattr(instance, field.name, _plain_value(value[field.name], hints[field.name],
+                                                           getattr(instance, field.name)))
+        return instance
+    raise NeedsDrake(f"a field of type {schema!r}")
+
+
+def _plain_default(schema):
+    """``_create_from_schema``'s value: None for a union, else ``schema()``."""
+    if typing.get_origin(schema) in (Union, types.UnionType):
+        return None
+    return (typing.get_origin(schema) or schema)()
+
+
+def _plain_scalar(value, schema):
+    """``_convert_yaml_primitive_to_schema_type``: the value as ``schema``, or None."""
+    if type(value) is schema:
+        return value
+    if type(value) is int and schema is float:
+        return float(value)
+    if type(value) is float and schema is int and value.is_integer():
+        return int(value)
+    if type(value) is str and schema in (float, int):
+        return schema(value)
+    if type(value) is str and schema is bool and value in ("true", "false"):
+        return value == "true"
     return None
-
-
-def finite(value, *, file, field, what="a number"):
-    """A finite float from a checked scalar (a number or a numeric string in ASCII,
-    without Python's ``_`` digit separators)."""
-    if isinstance(value, str) and _python_only_spelling(value):
-        raise InputError(f"expected {what}, got {kind_of(value)} (write ASCII digits, without '_')",
-                         file=file, field=field)
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"expected {what}, got {kind_of(value)}", file=file, field=field) from None
-    except OverflowError:  # an integer of hundreds of digits
-        raise InputError("is not a finite number (too large for any float)", file=file, field=field) from None
-    if not math.isfinite(number):
-        raise InputError(f"{value!r} is not a finite number", file=file, field=field)
-    return number
-
-
-def positive(value, *, file, field):
-    """A finite number > 0 (a size, a speed, a time span)."""
-    number = finite(value, file=file, field=field)
-    if not number > 0.0:
-        raise InputError(f"must be > 0, got {number:g}", file=file, field=field)
-    return number
-
-
-def unique_name(name, seen: dict, *, what: str, file, field) -> None:
-    """Checks that ``name`` (of a ``what`` at ``field``, as ``people[0]``) is non-empty and
-    not one of ``seen`` (name -> the field that used it), then records it there."""
-    if not name:
-        raise InputError(f"a {what} needs a non-empty name", file=file, field=f"{field}.name")
-    if name in seen:
-        raise InputError(f"{what} name {name!r} is used by {seen[name]} already", file=file, field=f"{field}.name")
-    seen[name] = field
-
-
-def non_negative(value, *, file, field):
-    """A finite number >= 0."""
-    number = finite(value, file=file, field=field)
-    if number < 0.0:
-        raise InputError(f"must be >= 0, got {number:g}", file=file, field=field)
-    return number
-
-
-def coordinate(value, *, file, field):
-    """A position coordinate in metres: finite and within :data:`MAX_COORDINATE_M`."""
-    number = finite(value, file=file, field=field)
-    if abs(number) > MAX_COORDINATE_M:
-        raise InputError(
-            f"{number:g} m is out of any robot's reach (positions are in metres, within +-{MAX_COORDINATE_M:g} m "
-            f"of the origin; for millimetres write {number / 1000:g})",
-            file=file, field=field,
-        )
-    return number
-
-
-def angle(value, *, file, field):
-    """Radians from a checked scalar: a number or any spelling of :func:`angle_from_text`,
-    at most a full turn (:data:`MAX_ANGLE_RAD`) in magnitude."""
-    written = value
-    if isinstance(value, str):
-        number = angle_from_text(value)
-        if number is None:
-            raise InputError(
-                f"{value!r} is not an angle (write radians, a multiple of pi such as -pi/2, "
-                "or degrees such as -90deg)",
-                file=file,
-                field=field,
-            )
-        value = number
-    number = finite(value, file=file, field=field)
-    if abs(number) > MAX_ANGLE_RAD + 1e-9:
-        if isinstance(written, str) and not _plain_number(written):  # -720deg, 3pi
-            message = f"{written.strip()} is more than a full turn (angles are within +-2 pi, +-360deg)"
-        else:
-            message = (f"{number:g} rad is more than a full turn: angles are radians; "
-                       f"for degrees write {number:g}deg")
-        raise InputError(message, file=file, field=field)
-    return number
-
-
-def _plain_number(text):
-    """Whether ``text`` is an angle written as a bare number (radians: no ``deg``, no pi)."""
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
-def vector(values, count, *, file, field, convert):
-    """An array, shape (count,), of ``convert(value, file=, field=)`` for each entry;
-    the entries are named ``field[i]`` in errors."""
-    if len(values) != count:
-        raise InputError(f"expected {count} values, got {len(values)}", file=file, field=field)
-    import numpy as np
-
-    return np.array([convert(v, file=file, field=f"{field}[{i}]") for i, v in enumerate(values)])
-
-
-def pose(spec, *, file, field):
-    """The ``RigidTransform`` of a spec with ``p`` (metres) and ``euler_zyx`` (angles),
-    such as ``PoseSpec``. Errors name ``field.p[i]`` or ``field.euler_zyx[i]``."""
-    p = vector(spec.p, 3, file=file, field=f"{field}.p", convert=coordinate)
-    euler = vector(spec.euler_zyx, 3, file=file, field=f"{field}.euler_zyx", convert=angle)
-    from drake_lfd.core.tasks import rigid_transform_from_euler_zyx
-
-    return rigid_transform_from_euler_zyx(p, euler)
