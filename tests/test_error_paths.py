@@ -80,10 +80,12 @@ TWO_FREE = scenario_text().replace("[0, -pi/2, [-pi, pi]]", "[[-pi, pi], -pi/2, 
 ], ids=["fine_grid", "three_free", "two_free"])
 def test_oversized_planning_problems_are_refused_before_allocation(tmp_path, name, text, field, limit):
     task = write(tmp_path, f"{name}.yaml", text)
-    status, _, err, seconds, peak = run_cli("plan", task, "--library", "paper5")
+    status, _, err, _, peak = run_cli("plan", task, "--library", "paper5")
     line = assert_one_line(status, err, 2, f"{task}: {field}:", limit)
     assert "angle_grid_deg" in line or "bounds" in line  # says what to change
-    assert seconds < 20 and peak < 400 * 2**20
+    # Refused before the problem is allocated: the process's peak memory shows it (no
+    # clock: a loaded machine takes longer for the same work).
+    assert peak < 400 * 2**20
 
 
 @pytest.mark.slow
@@ -95,10 +97,10 @@ def test_the_suggested_grid_plans_within_a_gigabyte(tmp_path):
     suggested = float(err.split("use angle_grid_deg: ")[1].split()[0])
     assert 0.5 < suggested <= 5
     task.write_text(FINE_GRID.replace("angle_grid_deg: 0.5", f"angle_grid_deg: {suggested:g}"))
-    status, out, err, seconds, peak = run_cli("plan", task, "--library", "paper5")
+    status, out, err, _, peak = run_cli("plan", task, "--library", "paper5")
     assert status == 0, err
     assert "planned with" in out
-    assert peak < 2**30 and seconds < 60
+    assert peak < 2**30
 
 
 def test_problem_size_counts_without_allocating_and_matches_the_candidates():
@@ -269,9 +271,9 @@ def test_a_huge_angle_bound_is_refused_as_a_slip(tmp_path):
     """``[-pi, 1e9]`` asked numpy for 28.5 GiB before the size check; the angle check now
     refuses it before planning."""
     task = write(tmp_path, "huge_bound.yaml", HUGE_BOUND)
-    status, _, err, seconds, peak = run_cli("plan", task, "--library", "paper5")
+    status, _, err, _, peak = run_cli("plan", task, "--library", "paper5")
     assert_one_line(status, err, 2, f"{task}: critical_configurations[1].euler_zyx[2][1]:", "more than a full turn")
-    assert seconds < 20 and peak < 400 * 2**20
+    assert peak < 400 * 2**20  # refused before anything is allocated
 
 
 @pytest.mark.parametrize("old, new, field, words", [
