@@ -252,10 +252,10 @@ _QUIET_CLUSTER = {
 
 
 #: How a LocalCluster's worker processes start. On Linux they are forked from the
-#: command's process, pydrake and the project already imported: a 2-worker cluster then
-#: starts in 0.4 s and shuts down in 0.03 s, against 1.2-1.4 s and 0.35 s for spawned
-#: workers that each import pydrake. Elsewhere (macOS, where forking a process that has
-#: loaded system frameworks is unsafe) they are spawned.
+#: command's process, pydrake and the project already imported, so a cluster starts and
+#: stops without each worker importing pydrake again (spawned workers do). Elsewhere
+#: (macOS, where forking a process that has loaded system frameworks is unsafe) they are
+#: spawned.
 WORKER_START_METHOD = "fork" if sys.platform.startswith("linux") else "spawn"
 
 
