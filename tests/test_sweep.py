@@ -295,3 +295,37 @@ def test_failure_kinds_group_by_the_records_kind_not_their_text():
     with pytest.raises(ValueError):
         Failure("typo_kind", "x")
     assert set(FAILURE_KINDS) >= {"path_constraint", "penetration", "separation", "no_executable_plan"}
+
+
+@pytest.mark.slow
+def test_the_sweeps_failure_kinds_do_not_move_when_every_message_is_reworded(tmp_path, monkeypatch):
+    """``bench_sweep``'s sweep (transferring, ``paper5``, its 2 x 2 base grid), two trials a
+    placement, run as ``drake-lfd sweep`` runs it and again with every failure line
+    reworded at its source (each ``Failure`` built with another text): the failure kinds
+    per trial and the summary's counts by kind are the same; only the lines differ."""
+    from drake_lfd.cli import main
+    from drake_lfd.core import failures
+    from drake_lfd.core.resources import scenarios_directory
+    from drake_lfd.experiments.sweep import row_key
+    from drake_lfd.io.json_lines import read_json_lines
+
+    def sweep(out):
+        status = main(["sweep", str(scenarios_directory() / "transferring.yaml"), "--library", "paper5",
+                       "--trials", "2", "--base-grid", "-0.3:-0.2:2", "0.6:0.7:2", "--workers", "1",
+                       "--out", str(out)])
+        assert status == 0
+        rows = sorted(read_json_lines(out / "sweep.jsonl"), key=lambda row: repr(row_key(row)))
+        return rows, json.loads((out / "summary.json").read_text())
+
+    rows, summary = sweep(tmp_path / "plain")
+    original_new = failures.Failure.__new__
+
+    def reworded(cls, kind, detail, **fields):
+        return original_new(cls, kind, f"reworded: {detail[::-1]}", **fields)
+
+    monkeypatch.setattr(failures.Failure, "__new__", reworded)
+    reworded_rows, reworded_summary = sweep(tmp_path / "reworded")
+    assert summary["failure_kinds"] and summary["failure_kinds"] == reworded_summary["failure_kinds"]
+    assert [row["failure_kinds"] for row in rows] == [row["failure_kinds"] for row in reworded_rows]
+    lines = [line for row in reworded_rows for line in row["failures"]]
+    assert lines and all(line.startswith("reworded: ") for line in lines)
