@@ -138,10 +138,10 @@ def search_executable(
     ``max_starts``, each time on a fresh copy of ``problem`` (an action blocked from one
     start may run from another). The blocked segments reported are the first start's.
 
-    ``refusal(problem)`` (``planning/refusals.py``) is asked once, when the search is
-    first about to try a blocked step's alternatives or to forbid something (a step or
-    a start): the segments it returns block every composition whatever is chosen, and
-    the search stops with them at once. Asked then rather than before the first
+    ``refusal(problem)`` (``planning/refusals.py``) is asked once, when the search
+    first meets a blocked step or start (before the step's alternatives): the
+    segments it returns block every composition whatever is chosen, and the search
+    stops with them at once. Asked then rather than before the first
     follow, it costs nothing on a composition that runs at once (the common case);
     asked before the alternatives are followed one by one, a refusal no choice can
     change is not delayed by them. Alternatives forbid nothing, so the problem it sees
@@ -263,13 +263,12 @@ def _search_from(problem: CompositionProblem, solve: Callable[[CompositionProble
                                              demo_names[step.demo]))
             problem.forbid_state(steps[0].j, steps[0].a_j)
             continue
-        if alternatives is not None and step not in tried:
-            # Before the alternatives are followed one by one: a blocker no choice can
-            # change refuses the task now (the alternatives forbid nothing, so the
-            # answer is the one the search would get after them).
-            refusal = refused(problem)
-            if refusal:
-                return ExecutableSearch(None, None, None, refusal, rounds, tried_a_start)
+        # Asked before the step's alternatives are followed one by one: a blocker no
+        # choice can change refuses the task now (alternatives forbid nothing, so the
+        # answer is the one the search would get after them).
+        refusal = refused(problem)
+        if refusal:
+            return ExecutableSearch(None, None, None, refusal, rounds, tried_a_start)
         passed = False
         if alternatives is not None and step not in tried:
             tried.add(step)
@@ -288,9 +287,6 @@ def _search_from(problem: CompositionProblem, solve: Callable[[CompositionProble
             if path.executable:
                 return ExecutableSearch(steps, composed, path, tuple(blocked), rounds, True)
             continue  # the next blocker is in a later step
-        refusal = refused(problem)
-        if refusal:
-            return ExecutableSearch(None, None, None, refusal, rounds, tried_a_start)
         blocked.append(InfeasibleSegment(step.j + 1, step.k + 1, first_blocker.reason, first_blocker.detail,
                                          demo_names[step.demo]))
         problem.forbid(step)
