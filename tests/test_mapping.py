@@ -221,6 +221,33 @@ def test_all_twists_at_once_equal_one_mapping_per_twist_to_the_bit(indices):
         assert np.array_equal(one.poses, poses)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_the_anchors_bound_the_correction_from_below_for_every_twist(seed):
+    """least_anchor_correction_m, from the anchors' residuals alone, is at most the
+    largest correction of the mapping with any of the twists, and equals the least of
+    them when (as here) that correction is largest at an anchor: a stretch verdict it
+    gives is the mapping's."""
+    demo = curvy_demo()
+    rng = np.random.default_rng(seed)
+    indices = sorted(rng.choice(np.arange(1, 90), size=int(rng.integers(1, 4)), replace=False).tolist())
+    exact = demo.poses[indices + [99]]
+    noise = dual_quaternion_from_euler_zyx(rng.uniform(-0.05, 0.05, (len(exact), 3)),
+                                           rng.uniform(-0.2, 0.2, (len(exact), 3)))
+    task = dual_quaternion_multiply(exact, noise)
+    twists = np.radians(np.arange(0.0, 360.0, 30.0))
+    corrections = [mut.map_segment(demo.poses, allocation_at(indices), task, twist_rad=float(t))
+                   .max_correction_position_m for t in twists]
+    bound = mut.least_anchor_correction_m(demo.poses, allocation_at(indices), task, twists)
+    assert bound > 0.0
+    assert bound <= min(corrections) + TOL
+    assert bound == pytest.approx(min(corrections), rel=0.2)
+    # With one twist, the bound is that mapping's residual at its anchors.
+    one = mut.map_segment(demo.poses, allocation_at(indices), task, twist_rad=float(twists[3]))
+    residuals = dual_quaternion_relative(one.uncorrected_poses[one.anchor_indices[:-1]], task[:-1])
+    assert mut.least_anchor_correction_m(demo.poses, allocation_at(indices), task, twists[3:4]) == pytest.approx(
+        np.linalg.norm(translation_from_dual_quaternion(residuals), axis=1).max(), abs=TOL)
+
+
 def test_bad_arguments():
     demo = curvy_demo()
     with pytest.raises(ValueError):

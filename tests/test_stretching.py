@@ -93,3 +93,53 @@ def test_the_paper_cost_keeps_eq_31s_choice(recorded_turn, tmp_path):
     chain = [(s["demo"], s["from"], s["to"]) for s in document["composition"]]
     assert ("turn_place", 2, 4) in chain
     assert document["max_correction"]["position_m"] > 0.5  # 660 mm: what the bound exists for
+
+
+class _Problem:
+    """What solve_within_stretch_bound reads of a problem: con positions 10 cm apart
+    on a line, and the steps forbidden."""
+
+    def __init__(self):
+        from drake_lfd.core.dual_quaternion import dual_quaternion_from_translation_rotation
+        self.candidate_poses = [np.array([dual_quaternion_from_translation_rotation([0.1 * c, 0.0, 0.0],
+                                                                                    [1.0, 0.0, 0.0, 0.0])])
+                                for c in range(4)]
+        self.forbidden = []
+
+    def forbid(self, step):
+        self.forbidden.append(step)
+
+
+def test_a_lower_bound_beyond_the_allowance_forbids_without_the_mapping_and_changes_no_verdict():
+    """Six candidate steps over spans of 10-30 cm (allowed: 2-7.5 cm) with corrections
+    on both sides of the allowance, and lower bounds at, below and beyond it: the steps
+    forbidden and the composition returned are those of the corrections alone; the
+    mapping is asked only for steps the bound cannot decide."""
+    from drake_lfd.planning.composition import Step
+    steps = [Step(0, 0, 1, 0, 0, 1.0), Step(1, 0, 2, 0, 0, 2.0), Step(2, 0, 3, 0, 0, 3.0),
+             Step(3, 1, 3, 0, 0, 4.0), Step(4, 0, 3, 0, 0, 5.0), Step(5, 0, 3, 0, 0, 6.0)]
+    allowed = [mut.allowed_correction_m(0.1 * (s.k - s.j)) for s in steps]
+    correction = {s: a * f for s, a, f in zip(steps, allowed, (3.0, 2.0, 1.5, 1.0 + 1e-12, 0.5, 0.9))}
+    least = {s: a * f for s, a, f in zip(steps, allowed, (2.0, 1.5, 1.0 + 1e-12, 1.0, 0.4, 0.9))}
+
+    def run(with_bound):
+        problem, asked = _Problem(), []
+
+        def solve(problem):  # the cheapest step not forbidden covers the task
+            left = [s for s in steps if s not in problem.forbidden]
+            return [left[0]] if left else None
+
+        def correction_of(step):
+            asked.append(step)
+            return correction[step]
+        chosen = mut.solve_within_stretch_bound(problem, solve, correction_of,
+                                                least.__getitem__ if with_bound else None)
+        return chosen, problem.forbidden, asked
+
+    plain, bounded = run(False), run(True)
+    assert plain[0] == bounded[0] == [steps[4]]
+    assert plain[1] == bounded[1] == steps[:4]
+    assert plain[2] == steps[:5]
+    # The bound decided steps 0 and 1 (beyond the allowance by more than the margin);
+    # step 2 (beyond it by 1e-12 only) and step 3 (at it) needed their mapping.
+    assert bounded[2] == steps[2:5]

@@ -76,7 +76,7 @@ if TYPE_CHECKING:
     from drake_lfd.core.similarity import Allocation
 
 __all__ = ["MappedSegment", "alignment_from_translations", "mapped_poses_from_deltas", "map_segment",
-           "map_segment_twists"]
+           "map_segment_twists", "least_anchor_correction_m"]
 
 _IDENTITY_QUATERNION = np.array([1.0, 0.0, 0.0, 0.0])
 _IDENTITY_QUATERNION.flags.writeable = False  # shared by every caller: returned as a copy
@@ -323,16 +323,44 @@ def map_segment_twists(demo_poses: ArrayLike, allocation: Allocation, task_poses
     demo_poses, task_poses = np.asarray(demo_poses, dtype=float), np.asarray(task_poses, dtype=float)
     indices = np.asarray(allocation.indices, dtype=int)
     suffix, deltas, t_demo, t_task, scale = _segment_parts(demo_poses, indices, task_poses, min_length_m)
+    alignments = _twisted_alignments(t_demo, t_task, np.asarray(twists_rad, dtype=float), min_length_m)
+    anchors = np.append(indices - indices[0], len(suffix) - 1)
+    return _mapped_through_anchors(deltas, task_poses, alignments[:, None, :], scale, anchors)[2]
+
+
+def _twisted_alignments(t_demo, t_task, twists: np.ndarray, min_length_m: float) -> np.ndarray:
+    """:func:`alignment_from_translations` for each of ``twists`` (a,): shape (a, 4), the
+    same numbers."""
     base = alignment_from_translations(t_demo, t_task, 0.0, min_length_m)
-    twists = np.asarray(twists_rad, dtype=float)
     alignments = np.broadcast_to(base, twists.shape + (4,)).copy()
     task_length = np.linalg.norm(t_task)
     turning = twists != 0.0
     if task_length >= min_length_m and turning.any():
         alignments[turning] = quaternion_multiply(
             quaternion_from_axis_angle(t_task / task_length, twists[turning]), base)
-    anchors = np.append(indices - indices[0], len(suffix) - 1)
-    return _mapped_through_anchors(deltas, task_poses, alignments[:, None, :], scale, anchors)[2]
+    return alignments
+
+
+def least_anchor_correction_m(demo_poses: ArrayLike, allocation: Allocation, task_poses: ArrayLike,
+                              twists_rad: ArrayLike, min_length_m: float = MIN_TRANSLATION_M) -> float:
+    """A lower bound on :func:`map_segment`'s ``max_correction_position_m`` for every twist
+    of ``twists_rad``, from the anchors alone: the least, over the twists, of the largest
+    position residual at an anchor. At an anchor the correction is the residual itself
+    (ScLERP at 0), so no sample of the mapping is needed but the p anchors': a mapping
+    this bound already shows beyond a limit need not be made. Inputs as
+    :func:`map_segment_twists`', unchecked."""
+    demo_poses, task_poses = np.asarray(demo_poses, dtype=float), np.asarray(task_poses, dtype=float)
+    indices = np.asarray(allocation.indices, dtype=int)
+    # The suffix's deltas at the anchors (Eq. 12 for those samples only) and Eq. 23's parts.
+    deltas = _deltas_from_poses(np.concatenate([demo_poses[indices], demo_poses[-1:]]))
+    t_demo = translation_from_dual_quaternion(deltas[0])
+    t_task = translation_from_dual_quaternion(dual_quaternion_relative(task_poses[0], task_poses[-1]))
+    demo_length = np.linalg.norm(t_demo)
+    scale = 1.0 if demo_length < min_length_m else float(np.linalg.norm(t_task) / demo_length)
+    alignments = _twisted_alignments(t_demo, t_task, np.asarray(twists_rad, dtype=float), min_length_m)
+    at_anchors = _mapped_poses_from_deltas(deltas, task_poses[-1], alignments[:, None, :], scale)[:, :-1]
+    residuals = dual_quaternion_relative(at_anchors, task_poses[:-1])  # (twists, p, 8)
+    return float(np.min(np.max(np.linalg.norm(translation_from_dual_quaternion(residuals), axis=-1), axis=-1)))
 
 
 def _corrections_between_anchors(residuals, anchors):

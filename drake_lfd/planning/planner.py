@@ -31,7 +31,7 @@ from drake_lfd.planning.stretching import solve_within_stretch_bound
 from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.features import Feature
 from drake_lfd.core.fidelity import FidelityWeights, check_cost_mode
-from drake_lfd.core.mapping import map_segment, map_segment_twists
+from drake_lfd.core.mapping import least_anchor_correction_m, map_segment, map_segment_twists
 from drake_lfd.planning.q_learning import QPolicy, plan_q
 from drake_lfd.core.similarity import Tolerances
 from drake_lfd.core.tasks import Box, ConcreteTask, angle_candidates, stops_of
@@ -469,11 +469,27 @@ def plan_composition(
             correction_memo[step] = mapped.max_correction_position_m
         return correction_memo[step]
 
+    # The twists a default mapping may take (twist_order's candidates).
+    twists_possible = [0.0] if not keep_out and floor_z is None else TWIST_CANDIDATES_RAD
+
+    least_memo: dict = {}
+
+    def least_correction_of(step):
+        """A lower bound on :func:`correction_of` from the anchors alone, whichever twist
+        (memoized)."""
+        if step in correction_memo:
+            return correction_memo[step]
+        if step not in least_memo:
+            span, task_poses = span_poses(step, None)
+            least_memo[step] = least_anchor_correction_m(feature_list[step.demo].poses, span.allocation, task_poses,
+                                                         twists_possible)
+        return least_memo[step]
+
     if cost == "fidelity":  # the paper's cost keeps Eq. 31 and its choices as they are
         unbounded_solve = solve
 
         def solve(problem: CompositionProblem):
-            return solve_within_stretch_bound(problem, unbounded_solve, correction_of)
+            return solve_within_stretch_bound(problem, unbounded_solve, correction_of, least_correction_of)
 
     def step_poses(step, option):
         """``step`` mapped as ``option`` (suffix, twist): its poses and the indices of its

@@ -196,30 +196,13 @@ def _branch_changes(problem: CompositionProblem, found_branches: list[list]) -> 
 PAN_GRID = 360
 
 
-def _pan_only_rows(checker: JointPathChecker) -> np.ndarray:
-    """Indices of the robot geometries whose distances to the boxes depend on
-    shoulder_pan alone (the shoulder link, and shapes of the upper arm round about the
-    shoulder_lift axis), found by moving every other joint at two pans."""
-    scene, rng = checker.scene, np.random.default_rng(0)
-    lower, upper = checker.law.position_lower, checker.law.position_upper
-    same: np.ndarray | None = None
-    for pan in (0.3, 2.1):
-        samples = rng.uniform(np.maximum(lower, -np.pi), np.minimum(upper, np.pi), size=(4, 6))
-        samples[:, 0] = pan
-        distances = np.array([scene.signed_distances(q) for q in samples])  # (4, geometries, boxes)
-        unchanged = np.all(np.abs(distances - distances[0]) < 1e-5, axis=(0, 2))  # FCL: ~1e-6 noise
-        same = unchanged if same is None else same & unchanged
-    assert same is not None  # set at the first pan
-    return np.flatnonzero(same)
-
-
 def _pan_memo(checker: JointPathChecker) -> dict:
     """The checker's pan-only rows, their Lipschitz constant in shoulder_pan (the largest
     distance of their points from the pan axis) and its pan sweep (:func:`_pan_sweeps`)."""
     memo = checker.pan_memo  # the trials of a task share its checker
     if "rows" not in memo:
         scene = checker.scene
-        rows = _pan_only_rows(checker)
+        rows = scene.pan_only_rows
         plant, inspector = scene.plant, scene.scene_graph.model_inspector()
         ids = scene.geometry.robot_geometry_ids
         memo["lipschitz"] = max((float(motion_bounds(plant, inspector, ids[r])[0]) for r in rows), default=0.0)
@@ -229,8 +212,8 @@ def _pan_memo(checker: JointPathChecker) -> dict:
 
 def _pan_sweeps(checker: JointPathChecker) -> "_PanClearance":
     """The checker's pan-only clearance as a function of shoulder_pan (made once per
-    checker: the pan-only rows' distances do not depend on the other joints, so any
-    configuration serves; all joints but the pan at zero)."""
+    checker), measured at the pan-only configuration (all joints but the pan at zero),
+    as the follow measures those shapes (:mod:`~drake_lfd.robot.pan_only`)."""
     memo = _pan_memo(checker)
     if memo.get("sweeps") is None:
         scene, rows = checker.scene, memo["rows"]
@@ -417,7 +400,7 @@ class PoseBlockers:
     form (:mod:`~drake_lfd.robot.analytic_ik`): the pan (the branch's shoulder root) and
     ``|sin q3|``, ``|sin q5|``. So:
 
-    - a shape whose clearance depends on shoulder_pan alone (:func:`_pan_only_rows`) and
+    - a shape whose clearance depends on shoulder_pan alone (:mod:`~drake_lfd.robot.pan_only`) and
       is within the clearance at pan ``p`` (:class:`_PanClearance`: Drake's signed
       distances on the 1-degree grid, decided exactly between) blocks every path whose
       poses over a span turn the pan across ``p`` by more than

@@ -33,7 +33,7 @@ import numpy as np
 from drake_lfd.core.dual_quaternion import translation_from_dual_quaternion
 from drake_lfd.planning.composition import CompositionProblem, Step
 
-__all__ = ["STRETCH_BOUND", "MIN_ALLOWED_CORRECTION_M", "MAX_STRETCH_ROUNDS", "span_length_m",
+__all__ = ["STRETCH_BOUND", "MIN_ALLOWED_CORRECTION_M", "MAX_STRETCH_ROUNDS", "BOUND_DECISION_MARGIN_M", "span_length_m",
            "allowed_correction_m", "solve_within_stretch_bound"]
 
 # On the bundled paper tasks (seeds 0-9) and the 60 tasks of benchmarks/bench_fidelity.py,
@@ -47,6 +47,9 @@ STRETCH_BOUND = 0.25
 MIN_ALLOWED_CORRECTION_M = 0.02
 # Steps forbidden for stretching before the planner is given up on.
 MAX_STRETCH_ROUNDS = 40
+# How far beyond the bound a lower bound on a correction must be to decide without the
+# mapping (the two computations differ by rounding, some 1e-16 m).
+BOUND_DECISION_MARGIN_M = 1e-9
 
 
 def span_length_m(problem: CompositionProblem, step: Step) -> float:
@@ -63,18 +66,32 @@ def allowed_correction_m(length_m: float) -> float:
 
 
 def solve_within_stretch_bound(problem: CompositionProblem, solve: Callable[[CompositionProblem], list | None],
-                               correction_of: Callable[[Step], float]) -> list[Step] | None:
+                               correction_of: Callable[[Step], float],
+                               least_correction_of: Callable[[Step], float] | None = None) -> list[Step] | None:
     """``solve(problem)``'s composition with every step within the bound (module
     docstring): steps whose ``correction_of(step)`` (the mapped span's largest position
     correction, m) exceeds :func:`allowed_correction_m` are forbidden in ``problem`` and
-    the planner solves again. None when nothing within the bound covers the task."""
+    the planner solves again. None when nothing within the bound covers the task.
+
+    ``least_correction_of(step)``, a lower bound on it that costs less (the anchors'
+    residuals, :func:`~drake_lfd.core.mapping.least_anchor_correction_m`), is asked
+    first: a step it puts beyond the bound by more than :data:`BOUND_DECISION_MARGIN_M`
+    is stretched whatever its mapping, and is forbidden without being mapped. The
+    verdicts are those of ``correction_of`` alone."""
+
+    def stretched(step: Step) -> bool:
+        allowed = allowed_correction_m(span_length_m(problem, step))
+        if least_correction_of is not None and least_correction_of(step) > allowed + BOUND_DECISION_MARGIN_M:
+            return True
+        return correction_of(step) > allowed
+
     for _ in range(MAX_STRETCH_ROUNDS):
         steps = solve(problem)
         if steps is None:
             return None
-        stretched = [s for s in steps if correction_of(s) > allowed_correction_m(span_length_m(problem, s))]
-        if not stretched:
+        stretched_steps = [s for s in steps if stretched(s)]
+        if not stretched_steps:
             return steps
-        for step in stretched:
+        for step in stretched_steps:
             problem.forbid(step)
     return None

@@ -25,6 +25,8 @@ The modules:
   ``Blocker``, ``JointPath``, and how a shortfall is worded.
 * ``follow_memory``: the check's memory of its last follows, so a plan sharing a prefix
   resumes where they part.
+* ``pan_only``: the shapes shoulder_pan alone places (base, shoulder, shoulder_lift
+  housing) and the one configuration they are measured at.
 * ``path_constraints``: a task's path constraints measured on a motion (the one measure
   the check, the refinement and the judge share).
 * ``path_timing``: time-optimal timing of a plan's joint path under the UR5e's limits.

@@ -101,6 +101,7 @@ from drake_lfd.robot.kinematics import (
     UR5eKinematics,
 )
 from drake_lfd.robot.motion_bounds import motion_bounds
+from drake_lfd.robot.pan_only import pan_only_configuration
 from drake_lfd.robot.path_constraints import (
     allowed_deviation,
     constraint_rotation,
@@ -164,6 +165,10 @@ class JointPathChecker:
             pairs += [(r, table) for r in robot_ids
                       if geometry.names.get(r, "").split("/")[0] not in ON_TABLE_LINKS]
         self._pairs = pairs
+        # Pairs of a shape placed by shoulder_pan alone: measured at its configuration
+        # (robot/pan_only.py), as the scene and the refusals' pan sweep measure them.
+        pan_only = {robot_ids[i] for i in scene.pan_only_rows}
+        self._pan_only_pair = [r in pan_only for r, _ in pairs]
         bounds = {r: motion_bounds(plant, inspector, r) for r in robot_ids}
         # (pairs, joints) motion bounds; a pair without one is always measured.
         self._pair_bounds = np.array([np.where(np.isfinite(bounds[r]), bounds[r], 0.0) for r, _ in pairs]
@@ -445,20 +450,29 @@ class JointPathChecker:
         due = np.flatnonzero((moved >= wake) | self._pair_unbounded)
         if not len(due):
             return math.inf, None, float(np.min(wake - moved))
-        scene = self.scene
-        scene.plant.SetPositions(scene.plant_context, scene.model, q)
-        query_object = scene.scene_graph.get_query_output_port().Eval(self._scene_graph_context)
-        signed_distance = query_object.ComputeSignedDistancePairClosestPoints
         best, best_pair = math.inf, None
         threshold = self.limits.clearance_m
-        for k in due.tolist():
-            pair = self._pairs[k]
-            distance = signed_distance(*pair).distance
-            # Stays beyond the clearance until its geometry has moved distance - clearance.
-            wake[k] = moved[k] + distance - threshold
-            if distance < best:
-                best, best_pair = distance, pair
+        pan_only = self._pan_only_pair
+        for at_pan_only in (False, True):
+            group = [k for k in due.tolist() if pan_only[k] == at_pan_only]
+            if not group:
+                continue
+            signed_distance = self._query(pan_only_configuration(q) if at_pan_only else q)
+            for k in group:
+                pair = self._pairs[k]
+                distance = signed_distance(*pair).distance
+                # Stays beyond the clearance until its geometry has moved distance - clearance.
+                wake[k] = moved[k] + distance - threshold
+                if distance < best:
+                    best, best_pair = distance, pair
         return best, best_pair, float(np.min(wake - moved))
+
+    def _query(self, q):
+        """The scene's signed-distance query with the arm at ``q``."""
+        scene = self.scene
+        scene.plant.SetPositions(scene.plant_context, scene.model, np.asarray(q, dtype=float))
+        return scene.scene_graph.get_query_output_port().Eval(
+            self._scene_graph_context).ComputeSignedDistancePairClosestPoints
 
     # -- candidates ----------------------------------------------------------------------
     def branches(self, X_WE: RigidTransform) -> list:

@@ -52,6 +52,7 @@ from pydrake.systems.framework import DiagramBuilder
 from drake_lfd.core.tasks import Box
 from drake_lfd.core.tool import ToolShape
 from drake_lfd.robot.kinematics import TOOL0_FRAME_NAME, add_ur5e
+from drake_lfd.robot.pan_only import pan_only_configuration, pan_only_geometry_ids
 from drake_lfd.robot.workcell import Workcell, table_under_robot
 
 __all__ = [
@@ -304,6 +305,12 @@ class KinematicScene:
         self.context = self.diagram.CreateDefaultContext()
         self.plant_context = self.plant.GetMyMutableContextFromRoot(self.context)
         self._scene_graph_context = self.scene_graph.GetMyContextFromRoot(self.context)
+        robot_ids = self.geometry.robot_geometry_ids
+        pan_only = set(pan_only_geometry_ids(self.plant, self.model, self.scene_graph.model_inspector(), robot_ids))
+        #: Rows of :meth:`signed_distances` whose shapes' place depends on shoulder_pan alone
+        #: (:mod:`~drake_lfd.robot.pan_only`), measured at its configuration.
+        self.pan_only_rows = np.array([i for i, g in enumerate(robot_ids) if g in pan_only], dtype=int)
+        self._other_rows = np.array([i for i, g in enumerate(robot_ids) if g not in pan_only], dtype=int)
 
     def signed_distances(self, q) -> np.ndarray:
         """Signed distances of every robot geometry to every obstacle then shell.
@@ -315,12 +322,27 @@ class KinematicScene:
         Returns
         -------
         array, shape (n_robot_geometries, n_obstacles + n_shells), metres
+
+        The rows of :attr:`pan_only_rows` are measured at
+        :func:`~drake_lfd.robot.pan_only.pan_only_configuration` (the same shapes'
+        places; Drake's query returns the same number for them then, whatever the
+        other joints).
         """
-        self.plant.SetPositions(self.plant_context, self.model, np.asarray(q, dtype=float))
+        q = np.asarray(q, dtype=float)
+        ids, boxes = self.geometry.robot_geometry_ids, self.geometry.keep_out_geometry_ids
+        canonical = pan_only_configuration(q)
+        if not len(self.pan_only_rows) or np.array_equal(q, canonical):
+            return self._distances_at(q, ids)
+        distances = np.empty((len(ids), len(boxes)))
+        distances[self._other_rows] = self._distances_at(q, [ids[i] for i in self._other_rows])
+        distances[self.pan_only_rows] = self._distances_at(canonical, [ids[i] for i in self.pan_only_rows])
+        return distances
+
+    def _distances_at(self, q: np.ndarray, robot_ids) -> np.ndarray:
+        """:func:`min_signed_distances` of ``robot_ids`` with the arm at ``q``."""
+        self.plant.SetPositions(self.plant_context, self.model, q)
         query_object = self.scene_graph.get_query_output_port().Eval(self._scene_graph_context)
-        return min_signed_distances(
-            query_object, self.geometry.robot_geometry_ids, self.geometry.keep_out_geometry_ids
-        )
+        return min_signed_distances(query_object, robot_ids, self.geometry.keep_out_geometry_ids)
 
     def clearance(self, q) -> tuple[float, str | None, str | None]:
         """Minimum signed distance of configuration ``q`` to any obstacle or shell.
