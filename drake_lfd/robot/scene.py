@@ -49,6 +49,7 @@ from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction
 from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import DiagramBuilder
 
+from drake_lfd.core.exact_memo import ExactMemo, exact_key
 from drake_lfd.core.tasks import Box
 from drake_lfd.core.tool import ToolShape
 from drake_lfd.robot.kinematics import TOOL0_FRAME_NAME, add_ur5e
@@ -311,6 +312,8 @@ class KinematicScene:
         #: (:mod:`~drake_lfd.robot.pan_only`), measured at its configuration.
         self.pan_only_rows = np.array([i for i, g in enumerate(robot_ids) if g in pan_only], dtype=int)
         self._other_rows = np.array([i for i, g in enumerate(robot_ids) if g not in pan_only], dtype=int)
+        # Their distances by pan (the branches of a pose share two pans; trials revisit them).
+        self._at_pan = ExactMemo(maxsize=256)
 
     def signed_distances(self, q) -> np.ndarray:
         """Signed distances of every robot geometry to every obstacle then shell.
@@ -335,7 +338,8 @@ class KinematicScene:
             return self._distances_at(q, ids)
         distances = np.empty((len(ids), len(boxes)))
         distances[self._other_rows] = self._distances_at(q, [ids[i] for i in self._other_rows])
-        distances[self.pan_only_rows] = self._distances_at(canonical, [ids[i] for i in self.pan_only_rows])
+        distances[self.pan_only_rows] = self._at_pan.get(exact_key(canonical[:1]), lambda: self._distances_at(
+            canonical, [ids[i] for i in self.pan_only_rows]))
         return distances
 
     def _distances_at(self, q: np.ndarray, robot_ids) -> np.ndarray:
