@@ -237,3 +237,42 @@ def test_a_blocker_no_choice_changes_is_refused_before_the_alternatives_are_foll
     (segment,) = result.infeasible
     assert segment.con_to == 4 and "on every inverse-kinematics branch" in segment.detail
     assert follows == 1
+
+
+def test_a_later_start_does_not_offer_again_what_its_poses_block(monkeypatch):
+    """Near-base task 3046: from the first start every step from con_2 to con_3 turns the
+    shoulder_lift housing through the shell's pans (by its poses, or a follow) or is
+    stretched; the next starts share its shoulder root. Each later start, once its
+    first follow is blocked, forbids at once the earlier starts' steps whose every
+    mapping its own poses block, instead of being offered them one by one: the same
+    refusal, and the later starts need less than half the planner's solves."""
+    import drake_lfd.planning.executable as executable
+    import drake_lfd.planning.planner as planner_module
+
+    def planned(carry):
+        solves, at_start = [], []
+        original_solve, original_search = planner_module.plan_exact, executable._search_from
+
+        def counted(problem):
+            solves.append(1)
+            return original_solve(problem)
+
+        def search_from(*args, **kwargs):
+            at_start.append(len(solves))
+            return original_search(*args, **kwargs)
+        with monkeypatch.context() as patch:
+            patch.setattr(planner_module, "plan_exact", counted)
+            patch.setattr(executable, "_search_from", search_from)
+            if not carry:
+                patch.setattr(executable, "_forbid_what_poses_block", lambda *args: None)
+            result, _follows = _plan_near_base(3046)
+        assert len(at_start) == 3  # every start was searched
+        return result, at_start[1], len(solves) - at_start[1]
+
+    result, first, later = planned(True)
+    plain, plain_first, plain_later = planned(False)
+    assert result.status == plain.status == "no_executable_plan"
+    assert [s.describe() for s in result.infeasible] == [s.describe() for s in plain.infeasible]
+    assert any("shoulder_lift_housing" in s.detail for s in result.infeasible)
+    assert first == plain_first  # the first start's search is the same
+    assert later < plain_later / 2

@@ -23,7 +23,9 @@ far is blocked like a collision). Once a follow has been blocked, a composition 
 poses alone show the follow would be blocked (``refusals.PoseBlockers``: a pan sweep
 through a shape's blocked pan, a singularity on the start's branch) stands blocked
 without being followed, and an alternative mapping whose own poses show it is passed
-over before it is composed.
+over before it is composed. A later start, once woken, forbids at once the earlier
+starts' steps whose every mapping its poses block, so the planner does not offer them
+again one by one.
 
 A span's feasibility depends on the joint state it starts from; forbidding the action
 for every start is the approximation that keeps the search small (an action blocked
@@ -162,6 +164,7 @@ def search_executable(
     """
     first = None
     asked: list = []
+    forbidden: list[Step] = []  # steps forbidden on the starts searched so far, in order
 
     def refused(problem):
         if refusal is not None and not asked:
@@ -175,7 +178,7 @@ def search_executable(
                               alternatives=alternatives, max_rounds=max_rounds, refused=refused,
                               path_constraints=path_constraints,
                               pose_blockers=None if pose_blockers is None else pose_blockers(),
-                              step_poses=step_poses)
+                              step_poses=step_poses, forbidden=forbidden)
         if search.steps is None and asked and asked[0]:
             return search  # no other start can help
         if search.steps is not None:
@@ -197,15 +200,21 @@ def _search_from(problem: CompositionProblem, solve: Callable[[CompositionProble
                  refused: Callable[[CompositionProblem], tuple[InfeasibleSegment, ...]] = lambda problem: (),
                  path_constraints: Sequence = (), pose_blockers: PoseBlockers | None = None,
                  step_poses: Callable[[Step, tuple], tuple[np.ndarray, Sequence[int]]] | None = None,
+                 forbidden: list[Step] | None = None,
                  ) -> ExecutableSearch:
     """The lazy search with the start fixed to branch ``start_index`` (see
-    :func:`search_executable`)."""
+    :func:`search_executable`). ``forbidden``: the steps earlier starts forbade (this
+    start's are added)."""
     blocked: list[InfeasibleSegment] = []
     tried_a_start = False
     overrides: dict[Step, tuple] = {}  # mappings adopted for steps, by step
     tried: set[Step] = set()  # steps whose alternatives were tried
+    earlier = [] if forbidden is None else list(forbidden)  # what the earlier starts forbade
     rounds = 0
     while rounds < max_rounds:
+        if earlier and pose_blockers is not None and pose_blockers.awake and step_poses is not None:
+            _forbid_what_poses_block(problem, earlier, pose_blockers, step_poses, alternatives)
+            earlier = []
         rounds += 1
         steps = solve(problem)
         if steps is None:
@@ -290,4 +299,21 @@ def _search_from(problem: CompositionProblem, solve: Callable[[CompositionProble
         blocked.append(InfeasibleSegment(step.j + 1, step.k + 1, first_blocker.reason, first_blocker.detail,
                                          demo_names[step.demo]))
         problem.forbid(step)
+        if forbidden is not None:
+            forbidden.append(step)
     return ExecutableSearch(None, None, None, tuple(blocked), max_rounds, tried_a_start)
+
+
+def _forbid_what_poses_block(problem: CompositionProblem, steps: list[Step], pose_blockers: PoseBlockers,
+                             step_poses: Callable[[Step, tuple], tuple[np.ndarray, Sequence[int]]],
+                             alternatives: Callable[[Step], list] | None) -> None:
+    """Forbids, on this start, each of ``steps`` (forbidden on an earlier start) whose
+    every mapping (the default and its alternatives) shows a blocker in its own spans by
+    its poses on this start's branch: the search would pass over each of them and forbid
+    the step, had it come to it; carried over, the planner is not offered it again. A
+    step blocked on an earlier start by a follow, or by poses this branch does not
+    share, is left to the search."""
+    for step in steps:
+        options = [(None, None)] + (alternatives(step) if alternatives is not None else [])
+        if all(pose_blockers.blocks_segment(*step_poses(step, option), step.j) for option in options):
+            problem.forbid(step)

@@ -492,9 +492,10 @@ def plan_composition(
             return solve_within_stretch_bound(problem, unbounded_solve, correction_of, least_correction_of)
 
     def step_poses(step, option):
-        """``step`` mapped as ``option`` (suffix, twist): its poses and the indices of its
-        critical configurations."""
-        _, mapped = mapped_step(step, *option)
+        """``step`` mapped as ``option`` (suffix, twist; a twist None: the suffix's best,
+        as compose takes it): its poses and the indices of its critical configurations."""
+        first, twist = option
+        _, mapped = mapped_step(step, first, twists_of(step, first, 1)[0] if twist is None else twist)
         return mapped.poses, mapped.anchor_indices
 
     def alternatives(step):

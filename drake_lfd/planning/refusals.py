@@ -430,6 +430,11 @@ class PoseBlockers:
         """X_B_tool0 (n, 4, 4) of the poses X_WE (n, 8)."""
         return self._X_BW @ matrices_from_dual_quaternion(dual_quaternions) @ self._X_E_tool0
 
+    @property
+    def awake(self) -> bool:
+        """Whether it judges compositions yet (after the first blocked follow)."""
+        return self._branch is not None
+
     def record(self, plan, path) -> None:
         """Learns from a blocked follow of ``plan``: wakes, and takes the branch of the
         path's start."""
