@@ -216,10 +216,10 @@ def test_compositions_whose_poses_show_the_blocker_are_ruled_out_unfollowed(seed
     con_2 to con_3; the way round the other side is clear, so the pre-check cannot refuse.
     Task 1085: the same with a shell where Drake's distances to the housing vary by more
     than 1e-5 m with shoulder_lift (a sampled test of "pan alone" missed it there: 67
-    follows; the shape is now read from the model). Task 82: every lift from con_1 stretches the elbow straight. After the first blocked
-    follow, compositions whose poses turn the pan through the blocked pans, or take the
-    start's branch deep into a singularity, are ruled out unfollowed: a fraction of the
-    follows, the same refusal."""
+    follows; the shape is now read from the model). Task 82: every lift from con_1
+    stretches the elbow straight. After the first blocked follow, compositions whose
+    poses turn the pan through the blocked pans, or take the start's branch deep into a
+    singularity, are ruled out unfollowed: a fraction of the follows, the same refusal."""
     result, follows = _plan_near_base(seed)
     plain, plain_follows = _plan_near_base(seed, predict=False)
     assert result.status == plain.status == "no_executable_plan"

@@ -33,8 +33,8 @@ import numpy as np
 from drake_lfd.core.dual_quaternion import translation_from_dual_quaternion
 from drake_lfd.planning.composition import CompositionProblem, Step
 
-__all__ = ["STRETCH_BOUND", "MIN_ALLOWED_CORRECTION_M", "MAX_STRETCH_ROUNDS", "BOUND_DECISION_MARGIN_M", "span_length_m",
-           "allowed_correction_m", "solve_within_stretch_bound"]
+__all__ = ["STRETCH_BOUND", "MIN_ALLOWED_CORRECTION_M", "MAX_STRETCH_ROUNDS", "BOUND_DECISION_MARGIN_M",
+           "span_length_m", "allowed_correction_m", "solve_within_stretch_bound"]
 
 # On the bundled paper tasks (seeds 0-9) and the 60 tasks of benchmarks/bench_fidelity.py,
 # fidelity plans correct at most 0.27 of a span's length (13.6 mm over a 51 mm span; all
