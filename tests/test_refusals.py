@@ -276,3 +276,53 @@ def test_a_later_start_does_not_offer_again_what_its_poses_block(monkeypatch):
     assert any("shoulder_lift_housing" in s.detail for s in result.infeasible)
     assert first == plain_first  # the first start's search is the same
     assert later < plain_later / 2
+
+
+def test_a_branch_lying_on_the_table_is_no_start():
+    """Near-base task 2049: con_1's branches clear the shells, but the preferred ones put
+    the forearm on the table, which the follow's first step checks. They used to be
+    taken as starts: every plan from them was blocked at once and the task refused
+    with "at con_1, the start: collision with the table" as its only reason. Now no
+    branch a follow can start from is offered, and the refusal says what blocks the
+    preferred branch. Task 43, refused the same way, plans from a branch that can start."""
+    result, _follows = _plan_near_base(2049)
+    assert result.status == "no_executable_plan"
+    (segment,) = result.infeasible
+    assert segment.con_from == 1 and "no joint configuration a follow can start from reaches con_1" in segment.detail
+    assert "collision with the table" in segment.detail and "the start:" not in segment.detail
+
+    planned, _follows = _plan_near_base(43)
+    assert planned.status == "planned"
+    assert not any("the start:" in s.detail for s in planned.infeasible)
+
+
+def test_every_start_candidate_passes_the_follows_first_step():
+    """The start candidates of con_1's poses on near-base tasks 2049 and 43 are exactly
+    the shell-clear branches whose first step the follow does not block."""
+    from pydrake.math import RigidTransform
+
+    from drake_lfd.core.pose_conversions import matrices_from_dual_quaternion
+    from drake_lfd.core.timing import time_plan
+    from drake_lfd.experiments.pick_and_place import pick_and_place_yaml
+    from drake_lfd.planning.planner import task_candidates
+    from drake_lfd.robot.workcell import Workcell
+
+    dropped = 0
+    for seed in (2049, 43):
+        task = task_from_spec(task_spec_from_text(pick_and_place_yaml(seed, shell_near_base=True)), file="near_base")
+        trial = draw_trial(task, 0)
+        checker = joint_path_checker(Workcell.of(trial), task.simulation)
+        _angles, poses = task_candidates(trial)
+        for pose in poses[0]:
+            X_WE = RigidTransform(matrices_from_dual_quaternion(np.asarray(pose)[None])[0])
+            starts = checker.start_candidates(X_WE)
+            clear = [b.q for b in checker.branches(X_WE)
+                     if b.collision_free and b.min_distance_m >= checker.limits.clearance_m]
+            assert len(starts) <= len(clear)
+            dropped += len(clear) - len(starts)
+            plan = time_plan(np.array([pose, pose]), [0, 1])  # staying at the pose
+            for q in clear:
+                path = checker.follow(plan, q)
+                blocked_at_start = path.blocker is not None and path.blocker.time_s == 0.0
+                assert blocked_at_start == (not any(np.array_equal(q, s) for s in starts))
+    assert dropped > 0

@@ -245,15 +245,19 @@ def _search_from(problem: CompositionProblem, solve: Callable[[CompositionProble
         if path is not None:
             tried_a_start = True
         if path is None:
-            # con_1 at this candidate has no collision-free joint configuration: no
-            # action from it can run.
+            # con_1 at this candidate has no joint configuration a follow can start
+            # from (on this start's branch): no action from it can run.
             refusal = refused(problem)
             if refusal:
                 return ExecutableSearch(None, None, None, refusal, rounds, tried_a_start)
             step = steps[0]
-            blocked.append(InfeasibleSegment(step.j + 1, step.k + 1, "reach",
-                                             f"no collision-free joint configuration reaches con_{step.j + 1}",
-                                             demo_names[step.demo]))
+            if start_index == 0:
+                X_WE = RigidTransform(matrices_from_dual_quaternion(composed[0].poses[:1])[0])
+                detail = (f"no joint configuration a follow can start from reaches con_{step.j + 1} "
+                          f"({checker.why_no_start(X_WE)})")
+            else:
+                detail = f"con_{step.j + 1} has no start branch {start_index + 1}"
+            blocked.append(InfeasibleSegment(step.j + 1, step.k + 1, "reach", detail, demo_names[step.demo]))
             problem.forbid_state(step.j, step.a_j)
             continue
         if path.executable:

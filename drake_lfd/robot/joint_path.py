@@ -142,6 +142,7 @@ class JointPathChecker:
         self.X_WB = RigidTransform() if X_WB is None else RigidTransform(X_WB)
         self.limits = limits
         self._branches = ExactMemo(maxsize=_REMEMBERED_POSES)
+        self._starts = ExactMemo(maxsize=_REMEMBERED_POSES)
         # The last follows from each start, to resume plans sharing a prefix.
         self._follows = FollowMemory()
         # Answers the planning layer derives from this scene alone, kept with the checker
@@ -491,11 +492,55 @@ class JointPathChecker:
         return self._branches.get(key, solve)
 
     def start_candidates(self, X_WE: RigidTransform) -> list[np.ndarray]:
-        """The inverse-kinematics branches reaching ``X_WE`` at the clearance from every
-        obstacle and shell, best first (the closed loop's initial configuration is the
-        first). Empty when none."""
+        """The inverse-kinematics branches reaching ``X_WE`` that a follow can start from,
+        best first (the closed loop's initial configuration is the first): at the
+        clearance from every obstacle, shell and the table and off every singularity
+        margin, as the follow's first step checks them (a branch that breaks one would
+        block every plan at its first step). Empty when none."""
+        key = np.ascontiguousarray(X_WE.GetAsMatrix34()).tobytes()
         clearance = self.limits.clearance_m
-        return [c.q for c in self.branches(X_WE) if c.collision_free and c.min_distance_m >= clearance]
+        return self._starts.get(key, lambda: [
+            c.q for c in self.branches(X_WE)
+            if c.collision_free and c.min_distance_m >= clearance and self._first_step_passes(c.q)])
+
+    def _first_step_passes(self, q: np.ndarray) -> bool:
+        """Whether the follow's first step from ``q`` keeps the singularity margins and
+        the clearance (every pair measured, as at a follow's start)."""
+        return self._first_step_violation(q) is None
+
+    def _first_step_violation(self, q: np.ndarray) -> str | None:
+        """What the follow's first step from ``q`` would be blocked by, in its words (the
+        singularity margins, then the clearance, every pair measured); None when nothing."""
+        limits = self.limits
+        elbow, wrist, shoulder = abs(math.sin(q[2])), abs(math.sin(q[4])), abs(shoulder_singularity_distance(q))
+        if elbow < limits.elbow_margin:
+            return f"elbow straight (|sin q3| = {elbow:.3f} < {limits.elbow_margin:g})"
+        if wrist < limits.wrist_margin:
+            return f"wrist aligned (|sin q5| = {wrist:.3f} < {limits.wrist_margin:g})"
+        if shoulder < limits.shoulder_margin_m:
+            return describe_shoulder_shortfall(shoulder, limits.shoulder_margin_m)
+        distance, pair, _slack = self._clearance(q.tolist(), np.zeros(len(q)), np.full(len(self._pairs), -np.inf))
+        if distance >= limits.clearance_m:
+            return None
+        robot_id, box_id = pair
+        names = self.scene.geometry
+        what = "the table" if box_id in self._table_ids else names.describe(box_id)
+        return (f"collision with {what}: {names.names.get(robot_id, robot_id)} "
+                f"{describe_clearance_shortfall(what, distance, limits.clearance_m)}")
+
+    def why_no_start(self, X_WE: RigidTransform) -> str:
+        """Why :meth:`start_candidates` of ``X_WE`` is empty, for a report: no branch
+        reaches it, or what blocks the preferred branch (the first the inverse
+        kinematics ranks)."""
+        branches = self.branches(X_WE)
+        if not branches:
+            return "no inverse-kinematics solution reaches it"
+        best = branches[0]
+        if not best.collision_free or best.min_distance_m < self.limits.clearance_m:
+            box = best.closest_box or "an obstacle"
+            return (f"on its preferred branch, {best.closest_robot_geometry} "
+                    f"{describe_clearance_shortfall(box, best.min_distance_m, self.limits.clearance_m)}")
+        return f"on its preferred branch, {self._first_step_violation(best.q)}"
 
     def follow_from_candidates(self, plan: TimedPlan, starts: Sequence[np.ndarray], *,
                                max_starts: int = 3, path_constraints: Sequence = ()) -> JointPath:
