@@ -53,7 +53,7 @@ from drake_lfd.robot.analytic_ik import elbow_and_wrist_sines, shoulder_pan_root
 from drake_lfd.robot.motion_bounds import motion_bounds
 from drake_lfd.robot.dh_kinematics import shoulder_singularity_distance
 from drake_lfd.robot.joint_path import JointPathChecker
-from drake_lfd.robot.joint_path_records import Blocker, describe_clearance_shortfall, describe_shoulder_shortfall
+from drake_lfd.robot.joint_path_records import Blocker, describe_clearance_shortfall, singularity_shortfall
 
 __all__ = ["branch_signature", "branch_violation", "blocked_configurations", "distinct_reasons",
            "PoseBlockers"]
@@ -68,14 +68,10 @@ def branch_violation(checker: JointPathChecker, q: np.ndarray, distance_m: float
     <drake_lfd.robot.scene.KinematicScene.clearance>`). ``kind`` names the margin (the
     same for every branch that breaks it)."""
     limits = checker.limits
-    elbow, wrist = abs(float(np.sin(q[2]))), abs(float(np.sin(q[4])))
-    shoulder = abs(shoulder_singularity_distance(q))
-    if elbow < limits.elbow_margin:
-        return "singularity", "elbow", f"elbow straight (|sin q3| = {elbow:.3f} < {limits.elbow_margin:g})"
-    if wrist < limits.wrist_margin:
-        return "singularity", "wrist", f"wrist aligned (|sin q5| = {wrist:.3f} < {limits.wrist_margin:g})"
-    if shoulder < limits.shoulder_margin_m:
-        return "singularity", "shoulder", describe_shoulder_shortfall(shoulder, limits.shoulder_margin_m)
+    singular = singularity_shortfall(abs(float(np.sin(q[2]))), abs(float(np.sin(q[4]))),
+                                     abs(shoulder_singularity_distance(q)), limits)
+    if singular is not None:
+        return "singularity", *singular
     if distance_m < limits.clearance_m:
         assert box is not None  # a distance below the clearance has its nearest box
         verb = describe_clearance_shortfall(box, distance_m, limits.clearance_m)

@@ -91,7 +91,7 @@ from drake_lfd.robot.joint_path_records import (
     JointPath,
     JointPathLimits,
     describe_clearance_shortfall,
-    describe_shoulder_shortfall,
+    singularity_shortfall,
 )
 from drake_lfd.robot.kinematics import (
     BASE_FRAME_NAME,
@@ -280,14 +280,9 @@ class JointPathChecker:
             elbow, wrist = abs(math.sin(q_list[2])), abs(math.sin(q_list[4]))
             shoulder = abs(shoulder_singularity_distance(q_list))
             min_elbow, min_wrist, min_shoulder = min(min_elbow, elbow), min(min_wrist, wrist), min(min_shoulder, shoulder)
-            if elbow < limits.elbow_margin:
-                blocker = Blocker("singularity", f"elbow straight (|sin q3| = {elbow:.3f} < {limits.elbow_margin:g})", t, span)
-            elif wrist < limits.wrist_margin:
-                blocker = Blocker("singularity", f"wrist aligned (|sin q5| = {wrist:.3f} < {limits.wrist_margin:g})", t, span)
-            elif shoulder < limits.shoulder_margin_m:
-                blocker = Blocker("singularity", describe_shoulder_shortfall(shoulder, limits.shoulder_margin_m), t,
-                                  span)
-            if blocker is not None:
+            if elbow < limits.elbow_margin or wrist < limits.wrist_margin or shoulder < limits.shoulder_margin_m:
+                _kind, detail = singularity_shortfall(elbow, wrist, shoulder, limits)
+                blocker = Blocker("singularity", detail, t, span)
                 break
             # Clearance. ``slack``: how much more any pair's geometry may move before a
             # pair can come within the clearance (a scalar bound over all pairs, so most
@@ -512,13 +507,10 @@ class JointPathChecker:
         """What the follow's first step from ``q`` would be blocked by, in its words (the
         singularity margins, then the clearance, every pair measured); None when nothing."""
         limits = self.limits
-        elbow, wrist, shoulder = abs(math.sin(q[2])), abs(math.sin(q[4])), abs(shoulder_singularity_distance(q))
-        if elbow < limits.elbow_margin:
-            return f"elbow straight (|sin q3| = {elbow:.3f} < {limits.elbow_margin:g})"
-        if wrist < limits.wrist_margin:
-            return f"wrist aligned (|sin q5| = {wrist:.3f} < {limits.wrist_margin:g})"
-        if shoulder < limits.shoulder_margin_m:
-            return describe_shoulder_shortfall(shoulder, limits.shoulder_margin_m)
+        singular = singularity_shortfall(abs(math.sin(q[2])), abs(math.sin(q[4])),
+                                         abs(shoulder_singularity_distance(q)), limits)
+        if singular is not None:
+            return singular[1]
         distance, pair, _slack = self._clearance(q.tolist(), np.zeros(len(q)), np.full(len(self._pairs), -np.inf))
         if distance >= limits.clearance_m:
             return None

@@ -25,6 +25,7 @@ __all__ = [
     "millimetres_below",
     "describe_clearance_shortfall",
     "describe_shoulder_shortfall",
+    "singularity_shortfall",
 ]
 
 REASONS = ("reach", "joint_limit", "singularity", "collision", "path_constraint")
@@ -158,3 +159,18 @@ def describe_shoulder_shortfall(distance_m: float, margin_m: float) -> str:
     """The wrist centre's distance from the shoulder axis, below its margin."""
     return (f"wrist centre {millimetres_below(distance_m, margin_m)} mm from the shoulder axis "
             f"(< {1000 * margin_m:g} mm)")
+
+
+def singularity_shortfall(elbow: float, wrist: float, shoulder_m: float,
+                          limits: JointPathLimits) -> tuple[str, str] | None:
+    """The first singularity margin of ``limits`` a configuration breaks, in the check's
+    order, as ``(kind, detail)`` (kind ``elbow``, ``wrist`` or ``shoulder``, the detail in
+    the check's words); None when it keeps them. ``elbow`` is ``|sin q3|``, ``wrist``
+    ``|sin q5|``, ``shoulder_m`` the wrist centre's distance from the shoulder axis."""
+    if elbow < limits.elbow_margin:
+        return "elbow", f"elbow straight (|sin q3| = {elbow:.3f} < {limits.elbow_margin:g})"
+    if wrist < limits.wrist_margin:
+        return "wrist", f"wrist aligned (|sin q5| = {wrist:.3f} < {limits.wrist_margin:g})"
+    if shoulder_m < limits.shoulder_margin_m:
+        return "shoulder", describe_shoulder_shortfall(shoulder_m, limits.shoulder_margin_m)
+    return None
