@@ -193,16 +193,17 @@ PAN_GRID = 360
 
 
 def _pan_memo(checker: JointPathChecker) -> dict:
-    """The checker's pan-only rows, their Lipschitz constant in shoulder_pan (the largest
-    distance of their points from the pan axis) and its pan sweep (:func:`_pan_sweeps`)."""
+    """The checker's pan-only rows' Lipschitz constant in shoulder_pan (the largest
+    distance of their points from the pan axis) and its pan sweep (:func:`_pan_sweeps`).
+    The rows themselves are the scene's (``scene.pan_only_rows``)."""
     memo = checker.pan_memo  # the trials of a task share its checker
-    if "rows" not in memo:
+    if "lipschitz" not in memo:
         scene = checker.scene
-        rows = scene.pan_only_rows
         plant, inspector = scene.plant, scene.scene_graph.model_inspector()
         ids = scene.geometry.robot_geometry_ids
-        memo["lipschitz"] = max((float(motion_bounds(plant, inspector, ids[r])[0]) for r in rows), default=0.0)
-        memo["rows"], memo["sweeps"] = rows, None
+        memo["lipschitz"] = max((float(motion_bounds(plant, inspector, ids[r])[0]) for r in scene.pan_only_rows),
+                                default=0.0)
+        memo["sweeps"] = None
     return memo
 
 
@@ -212,7 +213,7 @@ def _pan_sweeps(checker: JointPathChecker) -> "_PanClearance":
     as the follow measures those shapes (:mod:`~drake_lfd.robot.pan_only`)."""
     memo = _pan_memo(checker)
     if memo.get("sweeps") is None:
-        scene, rows = checker.scene, memo["rows"]
+        scene, rows = checker.scene, checker.scene.pan_only_rows
         pans = np.linspace(0.0, 2 * np.pi, PAN_GRID, endpoint=False)
         q = np.zeros(6)
         least = _pan_table(scene, q, rows, pans).reshape(PAN_GRID, -1).min(axis=1)
@@ -345,7 +346,7 @@ def _blocked_pan_sweeps(problem: CompositionProblem, checker: JointPathChecker,
     if not scene.geometry.keep_out_geometry_ids or any(not good for good in good_branches):
         return []
     memo = _pan_memo(checker)
-    rows, lipschitz = memo["rows"], memo["lipschitz"]
+    rows, lipschitz = scene.pan_only_rows, memo["lipschitz"]
     if not len(rows) or not np.isfinite(lipschitz):
         return []
     clearance = checker.limits.clearance_m
@@ -413,7 +414,7 @@ class PoseBlockers:
     def __init__(self, checker: JointPathChecker):
         self._checker = checker
         memo = _pan_memo(checker)
-        self._pans_usable = bool(len(memo["rows"]) and np.isfinite(memo["lipschitz"])
+        self._pans_usable = bool(len(checker.scene.pan_only_rows) and np.isfinite(memo["lipschitz"])
                                  and len(checker.scene.geometry.keep_out_geometry_ids))
         kinematics = checker.kinematics
         self._X_BW = kinematics.X_WB.inverse().GetAsMatrix4()

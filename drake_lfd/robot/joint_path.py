@@ -449,8 +449,9 @@ class JointPathChecker:
         best, best_pair = math.inf, None
         threshold = self.limits.clearance_m
         pan_only = self._pan_only_pair
+        due_list = due.tolist()
         for at_pan_only in (False, True):
-            group = [k for k in due.tolist() if pan_only[k] == at_pan_only]
+            group = [k for k in due_list if pan_only[k] == at_pan_only]
             if not group:
                 continue
             signed_distance = self._query(pan_only_configuration(q) if at_pan_only else q)
